@@ -1,0 +1,255 @@
+"""Contact laws: kernel functions and the parameter objects that feed them.
+
+A law kernel takes one contact's summary (overlap ``ov`` > 0, unit normal ``n`` from
+the home body i to the neighbour j), the velocity ``v`` of j relative to i at the contact
+point, the contact's effective radius and mass, the pair's parameter row ``p`` and the
+contact's history row ``hist[k]``, and returns the force on j (i gets the opposite). The
+history row holds the tangential spring (elongation vector, 3 components, [m]); it is
+updated in place and reset by the caller when the contact opens. Vectors are passed as
+three scalars: 2D contacts pass ``z = 0``.
+
+Tangential history is a time-dependent state: its rate is the tangential relative
+velocity. It is advanced with the relative velocity at mid-step (the velocity Verlet
+half-step velocity), i.e. the midpoint rule, second order in ``dt``; before each update
+it is projected onto the current tangent plane (the contact frame rotates).
+
+Every law has three kernels: ``force``, ``stiffness`` (normal and tangential tangent
+stiffness [N/m], for the critical time step and the tangent operator) and ``energy``
+(elastic energy stored in the contact [J]).
+"""
+
+import math
+
+import numpy as np
+
+from .._jit import kernel
+
+N_HIST = 3  # tangential spring vector
+
+
+# --------------------------------------------------------------------------- linear
+@kernel
+def law_linear(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, hist, k, dt):
+    """Linear spring-dashpot normal force, tangential history spring, Coulomb cap.
+
+    ``p = (kn [N/m], kt [N/m], gamma_n [N s/m], gamma_t [N s/m], zeta [-], mu [-])``.
+    The normal dashpot is ``gamma_n + 2 zeta sqrt(kn m_eff)``: a fixed coefficient
+    (paper eq 19) plus a damping ratio (restitution-based, as in LAMMPS/LIGGGHTS).
+    The paper's elastic law (eqs 16-18) is this law with both dashpots zero.
+    """
+    kn, kt, gn, gt, zeta, mu = p[0], p[1], p[2], p[3], p[4], p[5]
+    cn = gn + 2.0 * zeta * math.sqrt(kn * m_eff)
+    vn = vx * nx + vy * ny + vz * nz
+    fn = kn * ov - cn * vn  # approaching (vn < 0) adds repulsion
+    tvx, tvy, tvz = vx - vn * nx, vy - vn * ny, vz - vn * nz
+    # tangential spring: rotate into the current tangent plane, then grow
+    sn = hist[k, 0] * nx + hist[k, 1] * ny + hist[k, 2] * nz
+    sx = hist[k, 0] - sn * nx + tvx * dt
+    sy = hist[k, 1] - sn * ny + tvy * dt
+    sz = hist[k, 2] - sn * nz + tvz * dt
+    ftx, fty, ftz = -kt * sx - gt * tvx, -kt * sy - gt * tvy, -kt * sz - gt * tvz
+    ft2 = ftx * ftx + fty * fty + ftz * ftz
+    cap = mu * abs(fn)
+    if ft2 > cap * cap:  # sliding: cap the force, shorten the spring to match
+        scale = cap / math.sqrt(ft2)
+        ftx, fty, ftz = ftx * scale, fty * scale, ftz * scale
+        if kt > 0.0:
+            sx, sy, sz = -(ftx + gt * tvx) / kt, -(fty + gt * tvy) / kt, -(ftz + gt * tvz) / kt
+    hist[k, 0], hist[k, 1], hist[k, 2] = sx, sy, sz
+    return fn * nx + ftx, fn * ny + fty, fn * nz + ftz
+
+
+@kernel
+def stiffness_linear(ov, r_eff, p):
+    return p[0], p[1]
+
+
+@kernel
+def energy_linear(ov, r_eff, p, hist, k):
+    s2 = hist[k, 0] ** 2 + hist[k, 1] ** 2 + hist[k, 2] ** 2
+    return 0.5 * p[0] * ov * ov + 0.5 * p[1] * s2
+
+
+# --------------------------------------------------------------------------- Hertz-Mindlin
+@kernel
+def law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, hist, k, dt):
+    """Hertz normal force, Mindlin (no-slip) tangential stiffness, restitution damping.
+
+    ``p = (E* [Pa], G* [Pa], beta [-], mu [-])`` with ``beta = ln e / sqrt(ln^2 e + pi^2)``
+    (negative). With ``a = sqrt(r_eff ov)``: ``Sn = 2 E* a``, ``St = 8 G* a``,
+    ``fn = 4/3 E* a ov - 2 sqrt(5/6) beta sqrt(Sn m_eff) vn`` and the tangential spring
+    force ``-St s - 2 sqrt(5/6) beta sqrt(St m_eff) vt``, capped by Coulomb (the forms
+    used by LIGGGHTS' hertz model and YADE's Hertz-Mindlin law).
+    """
+    es, gs, beta, mu = p[0], p[1], p[2], p[3]
+    a = math.sqrt(r_eff * ov)
+    sn_k = 2.0 * es * a
+    st_k = 8.0 * gs * a
+    c = -2.0 * math.sqrt(5.0 / 6.0) * beta
+    cn = c * math.sqrt(sn_k * m_eff)
+    ct = c * math.sqrt(st_k * m_eff)
+    vn = vx * nx + vy * ny + vz * nz
+    fn = 4.0 / 3.0 * es * a * ov - cn * vn
+    tvx, tvy, tvz = vx - vn * nx, vy - vn * ny, vz - vn * nz
+    sn = hist[k, 0] * nx + hist[k, 1] * ny + hist[k, 2] * nz
+    sx = hist[k, 0] - sn * nx + tvx * dt
+    sy = hist[k, 1] - sn * ny + tvy * dt
+    sz = hist[k, 2] - sn * nz + tvz * dt
+    ftx, fty, ftz = -st_k * sx - ct * tvx, -st_k * sy - ct * tvy, -st_k * sz - ct * tvz
+    ft2 = ftx * ftx + fty * fty + ftz * ftz
+    cap = mu * abs(fn)
+    if ft2 > cap * cap:
+        scale = cap / math.sqrt(ft2)
+        ftx, fty, ftz = ftx * scale, fty * scale, ftz * scale
+        if st_k > 0.0:
+            sx = -(ftx + ct * tvx) / st_k
+            sy = -(fty + ct * tvy) / st_k
+            sz = -(ftz + ct * tvz) / st_k
+    hist[k, 0], hist[k, 1], hist[k, 2] = sx, sy, sz
+    return fn * nx + ftx, fn * ny + fty, fn * nz + ftz
+
+
+@kernel
+def stiffness_hertz_mindlin(ov, r_eff, p):
+    a = math.sqrt(r_eff * max(ov, 0.0))
+    return 2.0 * p[0] * a, 8.0 * p[1] * a
+
+
+@kernel
+def energy_hertz_mindlin(ov, r_eff, p, hist, k):
+    a = math.sqrt(r_eff * ov)
+    s2 = hist[k, 0] ** 2 + hist[k, 1] ** 2 + hist[k, 2] ** 2
+    return 8.0 / 15.0 * p[0] * a * ov * ov + 0.5 * 8.0 * p[1] * a * s2
+
+
+# --------------------------------------------------------------------------- parameter objects
+def _check(name, value, lo=0.0, strict=False):
+    value = float(value)
+    ok = math.isfinite(value) and (value > lo if strict else value >= lo)
+    if not ok:
+        rel = ">" if strict else ">="
+        raise ValueError(f"{name} must be finite and {rel} {lo}, got {value}")
+    return value
+
+
+class Law:
+    """Base of the law parameter objects: names its kernels and its parameter row."""
+
+    code = -1  # selects the force kernel inside the compiled time-step loop
+    force = None
+    stiffness = None
+    energy = None
+    n_hist = N_HIST
+
+    def row(self):
+        """The pair-parameter row the kernels read (float64 array)."""
+        raise NotImplementedError
+
+    def critical_stiffness(self, r_ref):
+        """Largest normal stiffness [N/m] a contact of reference radius ``r_ref`` reaches."""
+        raise NotImplementedError
+
+
+class LinearSpring(Law):
+    """Linear spring(-dashpot) with tangential history and Coulomb friction.
+
+    Parameters
+    ----------
+    kn, kt : float
+        Normal and tangential spring stiffness [N/m] (>= 0, kn > 0).
+    mu : float
+        Coulomb friction coefficient [-] (>= 0).
+    gamma_n, gamma_t : float, optional
+        Normal and tangential dashpot coefficients [N s/m] (paper eqs 19-20).
+    restitution : float, optional
+        Normal coefficient of restitution in (0, 1]; adds the damping ratio
+        ``zeta = -ln e / sqrt(pi^2 + ln^2 e)`` so that a binary collision rebounds
+        with ``e`` whatever the masses (LAMMPS/LIGGGHTS convention).
+
+    Examples
+    --------
+    >>> law = LinearSpring(kn=1e5, kt=5e4, mu=0.3, restitution=0.5)
+    >>> round(law.zeta, 4)
+    0.2155
+    """
+
+    code = 0
+    force = staticmethod(law_linear)
+    stiffness = staticmethod(stiffness_linear)
+    energy = staticmethod(energy_linear)
+
+    def __init__(self, kn, kt=0.0, mu=0.0, gamma_n=0.0, gamma_t=0.0, restitution=1.0):
+        self.kn = _check("kn", kn, strict=True)
+        self.kt = _check("kt", kt)
+        self.mu = _check("mu", mu)
+        self.gamma_n = _check("gamma_n", gamma_n)
+        self.gamma_t = _check("gamma_t", gamma_t)
+        e = float(restitution)
+        if not (0.0 < e <= 1.0):
+            raise ValueError(f"restitution must be in (0, 1], got {restitution}")
+        self.restitution = e
+        self.zeta = -math.log(e) / math.sqrt(math.pi**2 + math.log(e) ** 2)
+
+    def row(self):
+        return np.array([self.kn, self.kt, self.gamma_n, self.gamma_t, self.zeta, self.mu])
+
+    def critical_stiffness(self, r_ref):
+        return max(self.kn, self.kt)
+
+
+def Elastic(kn, kt, mu):
+    """The paper's elastic law (eqs 16-18): linear springs, shear history, Coulomb cap."""
+    return LinearSpring(kn=kn, kt=kt, mu=mu)
+
+
+def Viscoelastic(kn, kt, gamma_n, gamma_t, mu):
+    """The paper's viscoelastic law (eqs 19-20): the elastic law plus dashpots [N s/m]."""
+    return LinearSpring(kn=kn, kt=kt, mu=mu, gamma_n=gamma_n, gamma_t=gamma_t)
+
+
+class HertzMindlin(Law):
+    """Hertz-Mindlin with restitution-derived damping, one material pair.
+
+    Parameters
+    ----------
+    young : float or (float, float)
+        Young's modulus [Pa] of each side (a plane may be given its own).
+    poisson : float or (float, float)
+        Poisson's ratio [-] in [0, 0.5).
+    restitution : float
+        Coefficient of restitution in (0, 1].
+    mu : float
+        Coulomb friction coefficient [-].
+    overlap_ref : float
+        Overlap, as a fraction of the radius, at which the critical time step takes its
+        stiffness (default 0.05).
+    """
+
+    code = 1
+    force = staticmethod(law_hertz_mindlin)
+    stiffness = staticmethod(stiffness_hertz_mindlin)
+    energy = staticmethod(energy_hertz_mindlin)
+
+    def __init__(self, young, poisson, restitution, mu, overlap_ref=0.05):
+        e1, e2 = np.broadcast_to(np.asarray(young, dtype=float), (2,))
+        n1, n2 = np.broadcast_to(np.asarray(poisson, dtype=float), (2,))
+        for name, v in (("young", e1), ("young", e2)):
+            _check(name, v, strict=True)
+        for v in (n1, n2):
+            if not (0.0 <= v < 0.5):
+                raise ValueError(f"poisson must be in [0, 0.5), got {v}")
+        e = float(restitution)
+        if not (0.0 < e <= 1.0):
+            raise ValueError(f"restitution must be in (0, 1], got {restitution}")
+        self.mu = _check("mu", mu)
+        self.e_star = 1.0 / ((1 - n1**2) / e1 + (1 - n2**2) / e2)
+        self.g_star = 1.0 / (2 * (2 - n1) * (1 + n1) / e1 + 2 * (2 - n2) * (1 + n2) / e2)
+        self.beta = math.log(e) / math.sqrt(math.log(e) ** 2 + math.pi**2)
+        self.overlap_ref = float(overlap_ref)
+
+    def row(self):
+        return np.array([self.e_star, self.g_star, self.beta, self.mu])
+
+    def critical_stiffness(self, r_ref):
+        a = math.sqrt(r_ref * self.overlap_ref * r_ref)
+        return max(2.0 * self.e_star * a, 8.0 * self.g_star * a)

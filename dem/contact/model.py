@@ -1,0 +1,109 @@
+"""ContactModel: which law acts between which bodies, resolved once at set-up.
+
+Two buckets exist for sphere scenes: sphere-sphere and sphere-wall. Each bucket has one
+law kind (a compile-time constant of the time-step loop) and a per-material-pair
+parameter table ``params[mat_i, mat_j]`` that the kernels index. A material pair that
+occurs in the scene but has no law is an error at set-up, naming the pair.
+"""
+
+import numpy as np
+
+from .laws import Law
+
+
+class ContactModel:
+    """Laws for sphere-sphere and sphere-wall contacts.
+
+    Parameters
+    ----------
+    law : Law or dict
+        One law for every pair of materials, or ``{(mat_a, mat_b): Law}`` (unordered
+        keys; every value of one kind, e.g. all :class:`LinearSpring`).
+    wall_law : Law or dict, optional
+        Law for sphere-wall contacts (default: ``law``). Keys are
+        ``(sphere material, wall material)``.
+
+    Examples
+    --------
+    >>> from dem.contact.laws import LinearSpring
+    >>> model = ContactModel(LinearSpring(kn=1e5, kt=5e4, mu=0.3))
+    >>> model.table("pp", 2).shape
+    (2, 2, 6)
+    """
+
+    def __init__(self, law, wall_law=None):
+        self.laws = {"pp": self._normalise(law, "law"),
+                     "pw": self._normalise(law if wall_law is None else wall_law, "wall_law")}
+
+    @staticmethod
+    def _normalise(law, name):
+        if isinstance(law, Law):
+            return {None: law}
+        if isinstance(law, dict) and law:
+            out = {}
+            kinds = {type(v) for v in law.values()}
+            if len(kinds) != 1 or not all(isinstance(v, Law) for v in law.values()):
+                raise ValueError(f"{name}: every material pair of a bucket needs the same law kind")
+            for (a, b), v in law.items():
+                out[(int(a), int(b))] = v
+            return out
+        raise TypeError(f"{name} must be a Law or a dict {{(mat_a, mat_b): Law}}, got {law!r}")
+
+    def kind(self, bucket):
+        """The law class of a bucket ('pp' or 'pw')."""
+        return type(next(iter(self.laws[bucket].values())))
+
+    def law_for(self, bucket, a, b):
+        laws = self.laws[bucket]
+        if None in laws:
+            return laws[None]
+        if (a, b) in laws:
+            return laws[(a, b)]
+        if bucket == "pp" and (b, a) in laws:
+            return laws[(b, a)]
+        return None
+
+    def table(self, bucket, n_mat):
+        """Parameter table (n_mat, n_mat, n_param) float64; NaN rows where no law is set."""
+        proto = next(iter(self.laws[bucket].values()))
+        t = np.full((n_mat, n_mat, proto.row().size), np.nan)
+        for a in range(n_mat):
+            for b in range(n_mat):
+                law = self.law_for(bucket, a, b)
+                if law is not None:
+                    t[a, b] = law.row()
+        return t
+
+    def check(self, bodies):
+        """Fail at set-up, naming every material pair present that has no law."""
+        from ..shapes import Shape
+
+        sph = np.unique(bodies.mat_id[bodies.kind == Shape.SPHERE])
+        wal = np.unique(bodies.mat_id[bodies.kind == Shape.PLANE])
+        missing = [("sphere-sphere", a, b) for a in sph for b in sph
+                   if a <= b and self.law_for("pp", a, b) is None]
+        missing += [("sphere-wall", a, b) for a in sph for b in wal
+                    if self.law_for("pw", a, b) is None]
+        if missing:
+            names = ", ".join(f"{k} materials ({a}, {b})" for k, a, b in missing)
+            raise ValueError(f"no contact law for {names}")
+
+    def max_stiffness(self, bodies):
+        """Largest normal or rotation-coupled tangential stiffness [N/m] in the scene."""
+        from ..shapes import Shape
+
+        r = bodies.radius[bodies.kind == Shape.SPHERE]
+        r_ref = float(r.min()) if r.size else 1.0
+        # tangential spring acts on translation and rotation: 1 + m r^2 / I
+        rot = 3.5 if bodies.dim == 3 else 3.0
+        k = 0.0
+        for bucket in ("pp", "pw"):
+            for law in self.laws[bucket].values():
+                kn = law.critical_stiffness(r_ref)
+                ks = law.stiffness(law_overlap(law, r_ref), r_ref, law.row())[1]
+                k = max(k, kn, rot * ks)
+        return k
+
+
+def law_overlap(law, r_ref):
+    return getattr(law, "overlap_ref", 0.05) * r_ref

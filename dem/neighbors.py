@@ -1,0 +1,359 @@
+"""Neighbour search: a Verlet list with a skin, built over an O(n) cell list.
+
+The list holds every sphere pair closer than ``r_i + r_j + skin`` as a half list
+(``i < j``), sorted by ``(i, j)``, with the periodic image of ``j`` for periodic axes,
+and every (sphere, wall) pair closer than ``r_i + skin``. It stays valid while no body
+has moved more than ``skin / 2`` since the build. Contact history survives a rebuild:
+rows are carried to the new list by pair key ``(i, j)`` with a linear merge of the two
+sorted lists. A k-d tree backend (``scipy.spatial.cKDTree``) builds the same list.
+
+Kernels have fixed capacity and return the number of pairs they needed; the Python
+wrapper regrows and retries.
+"""
+
+import logging
+
+import numpy as np
+
+from ._jit import kernel
+
+log = logging.getLogger(__name__)
+
+
+# --------------------------------------------------------------------------- kernels
+@kernel
+def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodic,
+                     pairs_out, img_out):
+    """Half Verlet list over a cell list; returns the number of pairs found.
+
+    ``lo`` (d,), ``length`` (d,) bound the grid, ``n_cells`` (d,) int64 cells per axis,
+    ``periodic`` (d,) bool. Positions on periodic axes must lie in ``[lo, lo + length)``.
+    Writes up to ``pairs_out.shape[0]`` pairs; a return value larger than that means
+    the buffers overflowed and nothing past the capacity was written.
+    """
+    d = pos.shape[1]
+    ns = sphere_ids.shape[0]
+    cap = pairs_out.shape[0]
+    n_tot = 1
+    for a in range(d):
+        n_tot *= n_cells[a]
+    cell_of = np.empty(ns, np.int64)
+    coords = np.empty((ns, d), np.int64)
+    counts = np.zeros(n_tot + 1, np.int64)
+    for s in range(ns):
+        i = sphere_ids[s]
+        c = 0
+        for a in range(d):
+            f = (pos[i, a] - lo[a]) / length[a] * n_cells[a]
+            ci = int(np.floor(f))
+            if ci < 0:
+                ci = 0
+            if ci >= n_cells[a]:
+                ci = n_cells[a] - 1
+            coords[s, a] = ci
+            c = c * n_cells[a] + ci
+        cell_of[s] = c
+        counts[c + 1] += 1
+    for c in range(n_tot):
+        counts[c + 1] += counts[c]
+    start = counts.copy()
+    items = np.empty(ns, np.int64)
+    fill = counts[:-1].copy()
+    for s in range(ns):
+        c = cell_of[s]
+        items[fill[c]] = s
+        fill[c] += 1
+    # neighbour-cell offsets per axis, deduplicated when an axis has < 3 cells
+    offs = np.empty((d, 3), np.int64)
+    n_off = np.empty(d, np.int64)
+    for a in range(d):
+        m = 0
+        for o in (-1, 0, 1):
+            if n_cells[a] == 1 and o != 0:
+                continue
+            if n_cells[a] == 2 and o == 1 and periodic[a]:
+                continue
+            offs[a, m] = o
+            m += 1
+        n_off[a] = m
+    n_stencil = 1
+    for a in range(d):
+        n_stencil *= n_off[a]
+    buf = np.empty(64, np.int64)
+    bimg = np.empty((64, d), np.int64)
+    n_pairs = 0
+    cell = np.empty(d, np.int64)
+    for s in range(ns):
+        i = sphere_ids[s]
+        m = 0
+        for t in range(n_stencil):
+            rem = t
+            ok = True
+            c = 0
+            for a in range(d - 1, -1, -1):
+                o = offs[a, rem % n_off[a]]
+                rem //= n_off[a]
+                ca = coords[s, a] + o
+                if ca < 0 or ca >= n_cells[a]:
+                    if periodic[a]:
+                        ca = (ca + n_cells[a]) % n_cells[a]
+                    else:
+                        ok = False
+                cell[a] = ca
+            if not ok:
+                continue
+            for a in range(d):
+                c = c * n_cells[a] + cell[a]
+            for q in range(start[c], start[c + 1]):
+                j = sphere_ids[items[q]]
+                if j <= i:
+                    continue
+                cut = radius[i] + radius[j] + skin
+                r2 = 0.0
+                for a in range(d):
+                    dx = pos[j, a] - pos[i, a]
+                    if periodic[a]:
+                        sh = np.floor(dx / length[a] + 0.5)
+                        dx -= sh * length[a]
+                    r2 += dx * dx
+                if r2 < cut * cut:
+                    if m == buf.shape[0]:
+                        nb = np.empty(2 * m, np.int64)
+                        nb[:m] = buf
+                        buf = nb
+                        ni = np.empty((2 * m, d), np.int64)
+                        ni[:m] = bimg
+                        bimg = ni
+                    buf[m] = j
+                    for a in range(d):
+                        if periodic[a]:
+                            dx = pos[j, a] - pos[i, a]
+                            bimg[m, a] = -np.int64(np.floor(dx / length[a] + 0.5))
+                        else:
+                            bimg[m, a] = 0
+                    m += 1
+        # insertion sort of this row by j (rows are short)
+        for u in range(1, m):
+            bj = buf[u]
+            bi = bimg[u].copy()
+            v = u - 1
+            while v >= 0 and buf[v] > bj:
+                buf[v + 1] = buf[v]
+                bimg[v + 1] = bimg[v]
+                v -= 1
+            buf[v + 1] = bj
+            bimg[v + 1] = bi
+        for u in range(m):
+            if n_pairs < cap:
+                pairs_out[n_pairs, 0] = i
+                pairs_out[n_pairs, 1] = buf[u]
+                for a in range(d):
+                    img_out[n_pairs, a] = bimg[u, a]
+            n_pairs += 1
+    return n_pairs
+
+
+@kernel
+def build_wall_pairs(pos, radius, sphere_ids, wall_ids, normal, skin, pairs_out):
+    """(sphere, wall) pairs with ``(x_i - p_w) . n_w - r_i < skin``, sorted by sphere."""
+    cap = pairs_out.shape[0]
+    d = pos.shape[1]
+    m = 0
+    for s in range(sphere_ids.shape[0]):
+        i = sphere_ids[s]
+        for w in range(wall_ids.shape[0]):
+            j = wall_ids[w]
+            gap = -radius[i]
+            for a in range(d):
+                gap += (pos[i, a] - pos[j, a]) * normal[j, a]
+            if gap < skin:
+                if m < cap:
+                    pairs_out[m, 0] = i
+                    pairs_out[m, 1] = j
+                m += 1
+    return m
+
+
+@kernel
+def carry_history(old_pairs, old_hist, new_pairs, new_hist_out):
+    """Copy history rows whose pair key ``(i, j)`` is in both lists (both sorted).
+
+    Rows of new pairs start at zero. Returns the number of rows carried.
+    """
+    new_hist_out[:] = 0.0
+    a = 0
+    carried = 0
+    n_old = old_pairs.shape[0]
+    for b in range(new_pairs.shape[0]):
+        i, j = new_pairs[b, 0], new_pairs[b, 1]
+        while a < n_old and (old_pairs[a, 0] < i or (old_pairs[a, 0] == i and old_pairs[a, 1] < j)):
+            a += 1
+        if a < n_old and old_pairs[a, 0] == i and old_pairs[a, 1] == j:
+            new_hist_out[b, :] = old_hist[a, :]
+            carried += 1
+    return carried
+
+
+@kernel
+def incidence(pairs, n, col, start_out, list_out):
+    """CSR of the rows of ``pairs`` where column ``col`` equals each body, rows in order.
+
+    ``start_out`` (n + 1,), ``list_out`` (m,) int64. A stable counting sort: the gather
+    that sums per-pair forces onto bodies visits them in a fixed order.
+    """
+    start_out[:] = 0
+    for k in range(pairs.shape[0]):
+        start_out[pairs[k, col] + 1] += 1
+    for b in range(n):
+        start_out[b + 1] += start_out[b]
+    fill = start_out[:n].copy()
+    for k in range(pairs.shape[0]):
+        b = pairs[k, col]
+        list_out[fill[b]] = k
+        fill[b] += 1
+
+
+# --------------------------------------------------------------------------- Python side
+class Box:
+    """The simulation domain: bounds ``lo``/``hi`` (d,) [m], periodic axes (d,) bool.
+
+    Non-periodic axes need no bounds (the cell grid follows the particles); a periodic
+    axis wraps positions into ``[lo, hi)``.
+    """
+
+    def __init__(self, lo, hi, periodic):
+        self.lo = np.asarray(lo, dtype=np.float64)
+        self.hi = np.asarray(hi, dtype=np.float64)
+        self.periodic = np.asarray(periodic, dtype=bool)
+        if np.any(self.periodic & ~(self.hi > self.lo)):
+            raise ValueError("a periodic axis needs hi > lo")
+
+    @property
+    def length(self):
+        return self.hi - self.lo
+
+    def matrix(self):
+        """Cell matrix H (d, d) [m] (diagonal: an orthogonal box)."""
+        return np.diag(np.where(self.periodic, self.length, 0.0))
+
+    def wrap(self, pos, ids):
+        """Wrap positions of bodies ``ids`` into the box on periodic axes (in place)."""
+        if not self.periodic.any():
+            return
+        p = pos[ids]
+        ax = self.periodic
+        p[:, ax] = self.lo[ax] + np.mod(p[:, ax] - self.lo[ax], self.length[ax])
+        pos[ids] = p
+
+
+class NeighborList:
+    """Verlet list with skin over a cell list (``backend="cell"``) or a k-d tree.
+
+    Attributes (after :meth:`build`)
+    ----------
+    pairs : (m, 2) int32, sphere pairs ``i < j`` sorted by ``(i, j)``
+    img : (m, d) int32, periodic image of j relative to i
+    wall_pairs : (mw, 2) int32, (sphere, wall) pairs sorted by sphere
+    pos_ref : (n, d), positions at the build; ``n_builds`` counts builds.
+    """
+
+    def __init__(self, skin, backend="cell", box=None):
+        if not skin > 0.0:
+            raise ValueError(f"skin must be positive, got {skin}")
+        if backend not in ("cell", "kdtree"):
+            raise ValueError(f"neighbour backend must be 'cell' or 'kdtree', got {backend!r}")
+        self.skin = float(skin)
+        self.backend = backend
+        self.box = box
+        self.n_builds = 0
+        self._cap = 0
+        self.pairs = None
+
+    def build(self, bodies):
+        """Rebuild both lists from the current positions (wrapping periodic axes)."""
+        d = bodies.dim
+        spheres = bodies.ids(0)
+        walls = bodies.ids(1)
+        box = self.box or Box(np.zeros(d), np.zeros(d), np.zeros(d, bool))
+        box.wrap(bodies.pos, spheres)
+        if spheres.size == 0:
+            pairs, img = np.zeros((0, 2), np.int32), np.zeros((0, d), np.int32)
+        elif self.backend == "cell":
+            pairs, img = self._build_cell(bodies, spheres, box)
+        else:
+            pairs, img = self._build_kdtree(bodies, spheres, box)
+        mw_cap = max(16, spheres.size * max(walls.size, 1))
+        wbuf = np.empty((min(mw_cap, 4 * spheres.size + 16), 2), np.int32)
+        mw = build_wall_pairs(bodies.pos, bodies.radius, spheres, walls, bodies.normal,
+                              self.skin, wbuf)
+        if mw > wbuf.shape[0]:
+            wbuf = np.empty((mw, 2), np.int32)
+            mw = build_wall_pairs(bodies.pos, bodies.radius, spheres, walls, bodies.normal,
+                                  self.skin, wbuf)
+        self.pairs, self.img = pairs, img
+        self.wall_pairs = wbuf[:mw].copy()
+        self.pos_ref = bodies.pos.copy()
+        self.n_builds += 1
+        return self
+
+    def _build_cell(self, bodies, spheres, box):
+        d = bodies.dim
+        pos, radius = bodies.pos, bodies.radius
+        rmax = float(radius[spheres].max())
+        cell = 2.0 * rmax + self.skin
+        lo = np.where(box.periodic, box.lo, pos[spheres].min(axis=0))
+        length = np.where(box.periodic, box.length, pos[spheres].max(axis=0) - lo + 1e-12)
+        if np.any(box.periodic & (length < 2.0 * cell)):
+            raise ValueError(
+                f"periodic box length {length[box.periodic].min():.4g} m is shorter than "
+                f"twice the neighbour cut-off {cell:.4g} m")
+        n_cells = np.maximum(1, np.floor(length / cell)).astype(np.int64)
+        while np.prod(n_cells) > 8 * spheres.size + 64:  # sparse scenes: coarser grid
+            n_cells = np.maximum(1, n_cells // 2)
+        if self._cap == 0:
+            self._cap = 8 * spheres.size + 64
+        while True:
+            pairs = np.empty((self._cap, 2), np.int32)
+            img = np.empty((self._cap, d), np.int32)
+            m = build_cell_pairs(pos, radius, spheres, self.skin, lo, length, n_cells,
+                                 box.periodic, pairs, img)
+            if m <= self._cap:
+                return pairs[:m].copy(), img[:m].copy()
+            log.debug("neighbour list overflow (%d > %d pairs): regrowing", m, self._cap)
+            self._cap = int(1.25 * m) + 16
+
+    def _build_kdtree(self, bodies, spheres, box):
+        from scipy.spatial import cKDTree
+
+        d = bodies.dim
+        pos = bodies.pos[spheres]
+        radius = bodies.radius[spheres]
+        cut = 2.0 * radius.max() + self.skin
+        if box.periodic.any():
+            # cKDTree's periodic mode needs every axis periodic: pad open axes with a huge box
+            span = pos.max(axis=0) - pos.min(axis=0) + 4.0 * cut + 1.0
+            size = np.where(box.periodic, box.length, 1e3 * span)
+            shifted = np.where(box.periodic, pos - box.lo, pos - pos.min(axis=0) + cut)
+            tree = cKDTree(shifted, boxsize=size)
+        else:
+            tree = cKDTree(pos)
+            shifted = pos
+        raw = tree.query_pairs(cut, output_type="ndarray")
+        if raw.size == 0:
+            return np.zeros((0, 2), np.int32), np.zeros((0, d), np.int32)
+        a, b = raw[:, 0], raw[:, 1]
+        dx = shifted[b] - shifted[a]
+        img = np.zeros((raw.shape[0], d), np.int64)
+        if box.periodic.any():
+            sh = np.floor(dx / np.where(box.periodic, box.length, 1.0) + 0.5)
+            sh[:, ~box.periodic] = 0.0
+            dx -= sh * np.where(box.periodic, box.length, 0.0)
+            img = -sh.astype(np.int64)
+        keep = np.einsum("ij,ij->i", dx, dx) < (radius[a] + radius[b] + self.skin) ** 2
+        i, j, img = spheres[a[keep]], spheres[b[keep]], img[keep]
+        swap = i > j
+        i, j = np.where(swap, j, i), np.where(swap, i, j)
+        img[swap] = -img[swap]
+        order = np.lexsort((j, i))
+        pairs = np.stack([i[order], j[order]], axis=1).astype(np.int32)
+        return pairs, img[order].astype(np.int32)

@@ -1,0 +1,289 @@
+"""Triggers and observers: read-only views of a running simulation.
+
+An observer has a ``trigger`` (when it fires) and is called with the simulation after
+the step on which the trigger fires. Observers never change the state.
+
+- :class:`ParticleTracker`: position, velocity, orientation, angular velocity of chosen bodies;
+- :class:`CollectionTracker`: homogenised Cauchy stress (paper eq 24) and contact-stiffness
+  tangent (eq 29) of a collection of bodies;
+- :class:`EnergyTracker`: kinetic, rotational, contact elastic, gravitational, wall work
+  and dissipated energy;
+- :class:`Record`: any scalar or array function of the simulation.
+"""
+
+import numpy as np
+
+from .shapes import Shape
+
+
+class Periodic:
+    """Fires on steps ``phase, phase + every, ...``.
+
+    >>> t = Periodic(10)
+    >>> t(20), t(25), t.next_after(25)
+    (True, False, 30)
+    """
+
+    def __init__(self, every, phase=0):
+        self.every, self.phase = int(every), int(phase)
+        if self.every < 1:
+            raise ValueError(f"every must be >= 1, got {every}")
+
+    def __call__(self, step):
+        return step >= self.phase and (step - self.phase) % self.every == 0
+
+    def next_after(self, step):
+        if step < self.phase:
+            return self.phase
+        return step + self.every - (step - self.phase) % self.every
+
+
+class _Series:
+    """Observer base: a trigger and a time series of records."""
+
+    def __init__(self, every):
+        self.trigger = every if hasattr(every, "next_after") else Periodic(every)
+        self.steps = []
+        self.times = []
+
+    def _stamp(self, sim):
+        self.steps.append(sim.step)
+        self.times.append(sim.time)
+
+
+class Record(_Series):
+    """Records ``fn(sim)`` whenever the trigger fires; values in ``self.values``."""
+
+    def __init__(self, fn, every=1):
+        super().__init__(every)
+        self.fn = fn
+        self.values = []
+
+    def __call__(self, sim):
+        self._stamp(sim)
+        v = self.fn(sim)
+        self.values.append(np.array(v, copy=True) if isinstance(v, np.ndarray) else v)
+
+
+class ParticleTracker(_Series):
+    """Position [m], velocity [m/s], orientation and angular velocity [rad/s] of ``ids``."""
+
+    def __init__(self, ids, every=1):
+        super().__init__(every)
+        self.ids = np.atleast_1d(np.asarray(ids, dtype=np.int64))
+        self.pos, self.vel, self.rot, self.ang_vel = [], [], [], []
+
+    def __call__(self, sim):
+        b = sim.bodies
+        self._stamp(sim)
+        self.pos.append(b.pos[self.ids].copy())
+        self.vel.append(b.vel[self.ids].copy())
+        self.rot.append(b.rot[self.ids].copy())
+        self.ang_vel.append(b.ang_vel[self.ids].copy())
+
+    def as_arrays(self):
+        """Dict of (n_records, n_ids, ...) arrays."""
+        return {k: np.array(getattr(self, k)) for k in ("pos", "vel", "rot", "ang_vel")} | {
+            "step": np.array(self.steps), "time": np.array(self.times)}
+
+
+def contact_summary(sim):
+    """Touching contacts of a primed simulation.
+
+    Returns a dict with, per contact ``c`` (n_c rows): ``i``, ``j`` (home body and
+    neighbour; j is a wall for wall contacts), ``normal`` (d,) from i to j, ``overlap``
+    [m], ``x1``/``x2`` (d,) the points of i and j deepest into the other [m], ``branch``
+    (d,) the vector from the centre of i to the centre of j, periodic image included
+    (sphere-sphere) or to the contact point times two (walls), ``force`` (d,) on j [N],
+    ``arm_i``/``arm_j`` (d,) from each centre to the contact point (``arm_j`` zero for
+    walls), ``kn``/``kt`` the law's tangent stiffness [N/m], ``is_wall`` bool.
+    """
+    b, nl = sim.bodies, sim.neighbors
+    d = b.dim
+    out = {k: [] for k in ("i", "j", "normal", "overlap", "x1", "x2", "branch", "force",
+                           "arm_i", "arm_j", "kn", "kt", "is_wall")}
+    # sphere-sphere
+    p, img = nl.pairs, nl.img
+    if p.shape[0]:
+        i, j = p[:, 0], p[:, 1]
+        shift = img @ sim._hmat.T
+        dx = b.pos[j] - b.pos[i] + shift
+        dist = np.linalg.norm(dx, axis=1)
+        ov = b.radius[i] + b.radius[j] - dist
+        t = ov > 0.0
+        i, j, dx, dist, ov = i[t], j[t], dx[t], dist[t], ov[t]
+        n = dx / dist[:, None]
+        ri, rj = b.radius[i], b.radius[j]
+        r_eff = ri * rj / (ri + rj)
+        kn, kt = _stiffness(sim, "pp", ov, r_eff, b.mat_id[i], b.mat_id[j])
+        out["i"].append(i), out["j"].append(j), out["normal"].append(n)
+        out["overlap"].append(ov)
+        out["x1"].append(b.pos[i] + ri[:, None] * n)
+        out["x2"].append(b.pos[i] + dx - rj[:, None] * n)
+        out["branch"].append(dx), out["force"].append(sim.fpair[t])
+        out["arm_i"].append((ri - 0.5 * ov)[:, None] * n)
+        out["arm_j"].append(-(rj - 0.5 * ov)[:, None] * n)
+        out["kn"].append(kn), out["kt"].append(kt)
+        out["is_wall"].append(np.zeros(i.size, bool))
+    wp = nl.wall_pairs
+    if wp.shape[0]:
+        i, w = wp[:, 0], wp[:, 1]
+        nw = b.normal[w]
+        gap = np.einsum("ij,ij->i", b.pos[i] - b.pos[w], nw)
+        ov = b.radius[i] - gap
+        t = ov > 0.0
+        i, w, nw, ov = i[t], w[t], nw[t], ov[t]
+        n = -nw
+        ri = b.radius[i]
+        kn, kt = _stiffness(sim, "pw", ov, ri, b.mat_id[i], b.mat_id[w])
+        arm = (ri - 0.5 * ov)[:, None] * n
+        out["i"].append(i), out["j"].append(w), out["normal"].append(n)
+        out["overlap"].append(ov)
+        out["x1"].append(b.pos[i] + ri[:, None] * n)
+        out["x2"].append(b.pos[i] + (ri - ov)[:, None] * n)
+        out["branch"].append(2.0 * arm), out["force"].append(-sim.wforce[t])
+        out["arm_i"].append(arm), out["arm_j"].append(np.zeros_like(arm))
+        out["kn"].append(kn), out["kt"].append(kt)
+        out["is_wall"].append(np.ones(i.size, bool))
+    shapes = {"i": (0,), "j": (0,), "normal": (0, d), "overlap": (0,), "x1": (0, d),
+              "x2": (0, d), "branch": (0, d), "force": (0, d), "arm_i": (0, d),
+              "arm_j": (0, d), "kn": (0,), "kt": (0,), "is_wall": (0,)}
+    return {k: (np.concatenate(v) if v else np.zeros(shapes[k])) for k, v in out.items()}
+
+
+def _stiffness(sim, bucket, ov, r_eff, ma, mb):
+    law = sim.model.kind(bucket)
+    table = sim._params_pp if bucket == "pp" else sim._params_pw
+    kn = np.empty(ov.size)
+    kt = np.empty(ov.size)
+    for c in range(ov.size):
+        kn[c], kt[c] = law.stiffness(ov[c], r_eff[c], table[ma[c], mb[c]])
+    return kn, kt
+
+
+def stress_and_tangent(sim, volume, ids=None, kinetic=True):
+    """Homogenised Cauchy stress (d, d) [Pa] and tangent (d, d, d, d) [Pa].
+
+    Stress (paper eq 24, tension positive): ``sigma = 1/V sum_p sum_c f_c (x) a_c``
+    over the bodies ``p`` of the collection, with ``f_c`` the force on ``p`` at
+    contact ``c`` and ``a_c`` the arm from the centre of ``p`` to the contact point;
+    for a sphere pair inside the collection this is ``-f (x) l`` with ``l`` the
+    centre-to-centre branch vector. The kinetic part ``-1/V sum m v (x) v`` is added
+    when ``kinetic``. The result is symmetrised.
+
+    Tangent (eq 29): ``C = 1/V sum_c [kn (n (x) l (x) n (x) l) + kt ((I - n n) (x) l (x) l)]``
+    with index order ``C_ijkl = kn n_i l_j n_k l_l + kt (delta_ik - n_i n_k) l_j l_l``.
+    """
+    b = sim.bodies
+    c = contact_summary(sim)
+    inside = np.ones(b.n, bool) if ids is None else np.isin(np.arange(b.n), ids)
+    fi = -c["force"]  # force on i
+    d = b.dim
+    sig = np.zeros((d, d))
+    mi = inside[c["i"]]
+    sig += np.einsum("ca,cb->ab", fi[mi], c["arm_i"][mi])
+    mj = inside[c["j"]] & ~c["is_wall"]
+    sig += np.einsum("ca,cb->ab", c["force"][mj], c["arm_j"][mj])
+    if kinetic:
+        free = inside & (b.kind == Shape.SPHERE) & ~b.is_fixed
+        sig -= np.einsum("p,pa,pb->ab", b.mass[free], b.vel[free], b.vel[free])
+    sig = 0.5 * (sig + sig.T) / volume
+    # tangent over contacts with at least one side in the collection
+    use = mi | mj
+    n, kn, kt = c["normal"][use], c["kn"][use], c["kt"][use]
+    branch = c["branch"][use]
+    eye = np.eye(d)
+    cn = np.einsum("c,ci,cj,ck,cl->ijkl", kn, n, branch, n, branch)
+    proj = eye[None] - np.einsum("ci,ck->cik", n, n)
+    ct = np.einsum("c,cik,cj,cl->ijkl", kt, proj, branch, branch)
+    return sig, (cn + ct) / volume
+
+
+class CollectionTracker(_Series):
+    """Homogenised stress (eq 24) and tangent (eq 29) of a collection of bodies.
+
+    Parameters
+    ----------
+    volume : float or callable
+        Volume [m^3] (area [m^2] in 2D) of the collection, or ``volume(sim)``.
+    ids : array_like, optional
+        Bodies of the collection (default: all).
+    every : int or trigger
+    """
+
+    def __init__(self, volume, ids=None, every=100, kinetic=True):
+        super().__init__(every)
+        self.volume = volume
+        self.ids = None if ids is None else np.asarray(ids)
+        self.kinetic = kinetic
+        self.stress, self.tangent = [], []
+
+    def __call__(self, sim):
+        self._stamp(sim)
+        v = self.volume(sim) if callable(self.volume) else float(self.volume)
+        s, c = stress_and_tangent(sim, v, self.ids, self.kinetic)
+        self.stress.append(s)
+        self.tangent.append(c)
+
+
+def kinetic_energy(bodies):
+    """Translational and rotational kinetic energy [J] of the free bodies."""
+    free = ~bodies.is_fixed
+    tr = 0.5 * np.sum(bodies.mass[free] * np.sum(bodies.vel[free] ** 2, axis=1))
+    ro = 0.5 * np.sum(bodies.inertia[free] * bodies.ang_vel[free] ** 2)
+    return float(tr), float(ro)
+
+
+def elastic_energy(sim):
+    """Elastic energy [J] stored in the contacts (normal and tangential springs)."""
+    b, nl = sim.bodies, sim.neighbors
+    e = 0.0
+    for bucket, pairs, hist, tab in (("pp", nl.pairs, sim.hist, sim._params_pp),
+                                     ("pw", nl.wall_pairs, sim.whist, sim._params_pw)):
+        if not pairs.shape[0]:
+            continue
+        law = sim.model.kind(bucket)
+        i, j = pairs[:, 0], pairs[:, 1]
+        if bucket == "pp":
+            dx = b.pos[j] - b.pos[i] + nl.img @ sim._hmat.T
+            ov = b.radius[i] + b.radius[j] - np.linalg.norm(dx, axis=1)
+            r_eff = b.radius[i] * b.radius[j] / (b.radius[i] + b.radius[j])
+        else:
+            ov = b.radius[i] - np.einsum("ij,ij->i", b.pos[i] - b.pos[j], b.normal[j])
+            r_eff = b.radius[i]
+        for k in np.flatnonzero(ov > 0.0):
+            e += law.energy(ov[k], r_eff[k], tab[b.mat_id[i[k]], b.mat_id[j[k]]], hist, k)
+    return float(e)
+
+
+class EnergyTracker(_Series):
+    """Energy budget [J]: kinetic, rotational, elastic, gravitational, wall work, dissipated.
+
+    ``dissipated = wall_work - (change of kinetic + rotational + elastic + gravitational)``
+    since the first record: what dashpots, friction and local damping took out.
+    """
+
+    KEYS = ("kinetic", "rotational", "elastic", "potential", "wall_work", "dissipated")
+
+    def __init__(self, every=100):
+        super().__init__(every)
+        self.data = {k: [] for k in self.KEYS}
+        self._e0 = None
+
+    def __call__(self, sim):
+        self._stamp(sim)
+        b = sim.bodies
+        tr, ro = kinetic_energy(b)
+        el = elastic_energy(sim)
+        free = ~b.is_fixed
+        pot = -float(np.sum(b.mass[free] * (b.pos[free] @ sim.gravity)))
+        work = float(sim.wall_work[0])
+        total = tr + ro + el + pot
+        if self._e0 is None:
+            self._e0 = (total, work)
+        diss = (work - self._e0[1]) - (total - self._e0[0])
+        for k, v in zip(self.KEYS, (tr, ro, el, pot, work, diss)):
+            self.data[k].append(v)
+
+    def as_arrays(self):
+        return {k: np.array(v) for k, v in self.data.items()} | {"step": np.array(self.steps)}

@@ -1,0 +1,309 @@
+"""Simulation: bodies + contact model + integrator + controllers + observers."""
+
+import logging
+import math
+
+import numpy as np
+
+from .contact.loops import NONFINITE, OK, OVERLAP, REBUILD, stepper
+from .contact.model import ContactModel
+from .neighbors import Box, NeighborList, carry_history, incidence
+from .shapes import Shape
+
+log = logging.getLogger(__name__)
+
+#: default time step as a fraction of the critical step (chosen from the
+#: speed-accuracy chart, docs/performance.md)
+DT_FACTOR = 0.15
+
+
+class SimulationError(RuntimeError):
+    """A run stopped on a physical failure (non-finite state, excessive overlap)."""
+
+
+def critical_time_step(bodies, model):
+    """Critical time step [s] from the lightest body and the stiffest contact.
+
+    ``dt_crit = sqrt(2 m_min / k_max)``: the velocity Verlet stability limit
+    (``dt < 2 / omega``) of two of the lightest bodies joined by the stiffest spring,
+    where a tangential spring counts with its rotational coupling ``1 + m r^2 / I``.
+    Returns ``(dt_crit, m_min, k_max)``.
+    """
+    free = (~bodies.is_fixed) & (bodies.kind == Shape.SPHERE)
+    if not free.any():
+        return math.inf, math.inf, 0.0
+    m_min = float(bodies.mass[free].min())
+    k_max = model.max_stiffness(bodies)
+    return math.sqrt(2.0 * m_min / k_max), m_min, k_max
+
+
+class Simulation:
+    """A DEM scene advanced in time.
+
+    Parameters
+    ----------
+    bodies : Bodies
+        The particle table (spheres/disks and walls); modified in place by :meth:`run`.
+    model : ContactModel or Law
+        Contact laws (a bare :class:`~dem.contact.laws.Law` acts on every pair).
+    dt : float, optional
+        Time step [s]; default ``DT_FACTOR * dt_crit``. A step above the critical step
+        is refused unless ``allow_unstable_dt=True``.
+    gravity : (d,) array_like, optional
+        Gravitational acceleration [m/s^2].
+    damping : float
+        Cundall local damping coefficient in [0, 1) (0: none).
+    skin : float, optional
+        Verlet skin [m]; default 0.4 x the mean sphere radius.
+    box : Box, optional
+        Periodic axes and their bounds.
+    neighbor_backend : {"cell", "kdtree"}
+    overlap_limit : float
+        A contact whose overlap exceeds this fraction of the smaller radius stops the
+        run (default 0.5).
+    observers, controllers, state_objects : sequences
+        Observers read the state when their trigger fires after a step; controllers
+        may change it when their trigger fires before a step; state objects are
+        advanced by RK2 every step (see :mod:`dem.state_objects`).
+    """
+
+    def __init__(self, bodies, model, dt=None, gravity=None, damping=0.0, skin=None,
+                 box=None, neighbor_backend="cell", overlap_limit=0.5, observers=(),
+                 controllers=(), state_objects=(), allow_unstable_dt=False):
+        if not isinstance(model, ContactModel):
+            model = ContactModel(model)
+        self.bodies = bodies
+        self.model = model
+        self.dim = bodies.dim
+        model.check(bodies)
+        self.dt_crit, m_min, k_max = critical_time_step(bodies, model)
+        if dt is None:
+            if not math.isfinite(self.dt_crit):
+                raise ValueError("dt must be given for a scene without free spheres")
+            dt = DT_FACTOR * self.dt_crit
+        dt = float(dt)
+        if not (dt > 0.0 and math.isfinite(dt)):
+            raise ValueError(f"dt must be positive and finite, got {dt}")
+        if dt > self.dt_crit and not allow_unstable_dt:
+            raise ValueError(
+                f"dt = {dt:.4g} s exceeds the critical time step {self.dt_crit:.4g} s "
+                f"(lightest body {m_min:.4g} kg, stiffest contact {k_max:.4g} N/m); "
+                f"pass allow_unstable_dt=True to run anyway")
+        self.dt = dt
+        g = np.zeros(self.dim) if gravity is None else np.asarray(gravity, dtype=np.float64)
+        if g.shape != (self.dim,):
+            raise ValueError(f"gravity must have {self.dim} components, got {g.shape}")
+        self.gravity = g
+        if not 0.0 <= damping < 1.0:
+            raise ValueError(f"damping must be in [0, 1), got {damping}")
+        self.damping = float(damping)
+        if not overlap_limit > 0.0:
+            raise ValueError(f"overlap_limit must be positive, got {overlap_limit}")
+        self.overlap_limit = float(overlap_limit)
+        sph = bodies.kind == Shape.SPHERE
+        if skin is None:
+            skin = 0.4 * float(bodies.radius[sph].mean()) if sph.any() else 1.0
+        self.box = box
+        self.neighbors = NeighborList(skin, backend=neighbor_backend, box=box)
+        self.observers = list(observers)
+        self.controllers = list(controllers)
+        self.state_objects = list(state_objects)
+        self.step = 0
+        self.time = 0.0
+        self.wall_work = np.zeros(1)
+        self._status = np.zeros(4, np.int64)
+        self._kernel = stepper(self.dim, model.kind("pp").code, model.kind("pw").code)
+        self._primed = False
+        self._failure_hooks = []
+
+    # ------------------------------------------------------------------ set-up
+    def _refresh_tables(self):
+        b = self.bodies
+        n_mat = int(b.mat_id.max()) + 1 if b.n else 1
+        self._params_pp = self.model.table("pp", n_mat)
+        self._params_pw = self.model.table("pw", n_mat)
+        with np.errstate(divide="ignore"):
+            self._inv_mass = np.where(b.is_fixed, 0.0, 1.0 / b.mass)
+            self._inv_inertia = np.where(b.is_fixed[:, None], 0.0, 1.0 / b.inertia)
+        self._hmat = self.box.matrix() if self.box is not None else np.zeros((self.dim, self.dim))
+        self._fixed = b.is_fixed.astype(np.uint8)
+
+    def _rebuild(self):
+        """Rebuild the neighbour lists, carrying contact history by pair key."""
+        b, nl = self.bodies, self.neighbors
+        old = (nl.pairs, getattr(self, "hist", None), getattr(nl, "wall_pairs", None),
+               getattr(self, "whist", None))
+        nl.build(b)
+        m, mw, d, nr = nl.pairs.shape[0], nl.wall_pairs.shape[0], self.dim, b.n_rot
+        self.hist = np.zeros((m, 3))
+        self.whist = np.zeros((mw, 3))
+        if old[0] is not None and old[1] is not None:
+            carry_history(old[0], old[1], nl.pairs, self.hist)
+            carry_history(old[2], old[3], nl.wall_pairs, self.whist)
+        self.fpair = np.zeros((m, d))
+        self.tpi = np.zeros((m, nr))
+        self.tpj = np.zeros((m, nr))
+        self.wforce = np.zeros((mw, d))
+        self.wtorque = np.zeros((mw, nr))
+        self._index()
+        self._radius_ref = b.radius.copy()
+
+    def _index(self):
+        n, nl = self.bodies.n, self.neighbors
+        self._pstart = np.zeros(n + 1, np.int64)
+        self._jstart = np.zeros(n + 1, np.int64)
+        self._wstart = np.zeros(n + 1, np.int64)
+        self._jlist = np.zeros(nl.pairs.shape[0], np.int64)
+        scratch = np.zeros(nl.pairs.shape[0], np.int64)
+        incidence(nl.pairs, n, 0, self._pstart, scratch)
+        incidence(nl.pairs, n, 1, self._jstart, self._jlist)
+        incidence(nl.wall_pairs, n, 0, self._wstart, np.zeros(nl.wall_pairs.shape[0], np.int64))
+
+    def _call(self, n_steps, prime):
+        b, nl = self.bodies, self.neighbors
+        return self._kernel(
+            n_steps, prime, self.dt, self.gravity, self.damping, nl.skin, self.overlap_limit,
+            b.pos, b.vel, b.rot, b.ang_vel, b.force, b.torque, b.radius, self._inv_mass,
+            self._inv_inertia, self._fixed, b.normal, b.mat_id, nl.pos_ref, self._hmat,
+            nl.pairs, nl.img, self.hist, self.fpair, self.tpi, self.tpj, self._pstart,
+            self._jstart, self._jlist, self._params_pp,
+            nl.wall_pairs, self.whist, self.wforce, self.wtorque, self._wstart,
+            self._params_pw, self._status, self.wall_work)
+
+    def prime(self):
+        """Build the neighbour lists and the forces of the current state (idempotent)."""
+        if not self._primed:
+            self._refresh_tables()
+            if self.neighbors.pairs is None:
+                self._rebuild()
+            else:
+                self._index()
+            self._call(0, True)
+            self._check_status(None)
+            self._primed = True
+
+    # ------------------------------------------------------------------ running
+    def run(self, n_steps, progress=None):
+        """Advance ``n_steps`` time steps.
+
+        Per step, in this order: controllers whose trigger fires on the current step;
+        half kick and drift of the bodies; contact and body forces; second half kick
+        (velocity Verlet, see :mod:`dem.contact.loops`); state objects advanced by RK2;
+        ``step += 1``; then every observer whose trigger fires on the new step. Steps
+        between events run as one compiled chunk; a chunk stops early when the
+        neighbour list must be rebuilt, which happens and the chunk resumes.
+
+        Parameters
+        ----------
+        n_steps : int
+        progress : bool, optional
+            Show a progress bar (default: when stderr is a terminal and the run is long).
+        """
+        n_steps = int(n_steps)
+        if n_steps < 0:
+            raise ValueError("n_steps must be >= 0")
+        self.prime()
+        end = self.step + n_steps
+        bar = _progress(n_steps, progress)
+        try:
+            while self.step < end:
+                for c in self.controllers:
+                    if c.trigger(self.step):
+                        c(self)
+                        self._primed = False
+                if not self._primed:
+                    self.prime()
+                stop = end
+                for o in self.observers + self.controllers:
+                    stop = min(stop, o.trigger.next_after(self.step))
+                if self.state_objects:
+                    stop = self.step + 1
+                start = self.step
+                self._advance(stop - self.step)
+                if self.state_objects:
+                    self._advance_state_objects()
+                if bar is not None:
+                    bar.update(self.step - start)
+                for o in self.observers:
+                    if o.trigger(self.step):
+                        o(self)
+        finally:
+            if bar is not None:
+                bar.close()
+
+    def _advance(self, n):
+        while n > 0:
+            snapshot = self._snapshot_bodies()
+            done = self._call(n, False)
+            self.step += done
+            self.time = self.step * self.dt
+            n -= done
+            code = self._status[0]
+            if code == REBUILD:
+                self._rebuild()
+                continue
+            self._check_status(snapshot)
+
+    def _check_status(self, snapshot):
+        code = int(self._status[0])
+        if code == OK:
+            return
+        i, j = int(self._status[1]), int(self._status[2])
+        if code == OVERLAP:
+            msg = (f"overlap between bodies {i} and {j} exceeds {self.overlap_limit:g} x the "
+                   f"smaller radius at step {self.step}: dt = {self.dt:.4g} s may be too "
+                   f"large or the bodies too fast (critical step {self.dt_crit:.4g} s)")
+        elif code == NONFINITE:
+            msg = f"non-finite force on body {i} at step {self.step}"
+        else:
+            msg = f"kernel status {code} at step {self.step}"
+        for hook in self._failure_hooks:
+            hook(self, snapshot)
+        raise SimulationError(msg)
+
+    def on_failure(self, hook):
+        """Register ``hook(sim, last_good_bodies)``, called before a SimulationError."""
+        self._failure_hooks.append(hook)
+
+    def _snapshot_bodies(self):
+        return self.bodies.copy() if self._failure_hooks else None
+
+    def _advance_state_objects(self):
+        for so in self.state_objects:
+            so.advance(self, self.time - self.dt, self.dt)
+        b = self.bodies
+        self._refresh_tables()
+        grow = np.max(b.radius - self._radius_ref) if b.n else 0.0
+        if grow > 0.25 * self.neighbors.skin:
+            self._rebuild()
+
+    # ------------------------------------------------------------------ contact data
+    def contacts(self):
+        """Touching contacts now, as a dict of arrays (see :func:`dem.observers.contact_summary`)."""
+        from .observers import contact_summary
+
+        self.prime()
+        return contact_summary(self)
+
+    def wall_forces(self):
+        """Total contact force [N] on each wall body: dict ``{body index: (d,) array}``."""
+        self.prime()
+        walls = self.bodies.ids(Shape.PLANE)
+        wp = self.neighbors.wall_pairs
+        out = {}
+        for w in walls:
+            rows = wp[:, 1] == w
+            out[int(w)] = -self.wforce[rows].sum(axis=0)
+        return out
+
+
+def _progress(n_steps, progress):
+    import sys
+
+    if progress is None:
+        progress = n_steps >= 20000 and sys.stderr.isatty()
+    if not progress:
+        return None
+    from tqdm import tqdm
+
+    return tqdm(total=n_steps, unit="step", unit_scale=True, leave=False)

@@ -1,0 +1,211 @@
+"""The particle table: every body of a scene as one struct-of-arrays.
+
+Row ``i`` of every field is body ``i``. A scene is 2D or 3D and the arrays say so: a 2D
+scene stores ``pos`` as (n, 2), one rotation angle per body in ``rot`` (n, 1) and a
+scalar angular velocity in ``ang_vel`` (n, 1); a 3D scene stores unit quaternions
+``rot`` (n, 4) as (w, x, y, z), body to world, and ``ang_vel`` (n, 3) in the world frame.
+Walls (planes) are bodies too: fixed, moved only by their prescribed velocity.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .shapes import Plane, Shape, Sphere
+
+
+def n_rot(dim):
+    """Rotational degrees of freedom: 1 in 2D, 3 in 3D."""
+    return 1 if dim == 2 else 3
+
+
+@dataclass(eq=False)
+class Bodies:
+    """Struct-of-arrays particle table (SI units).
+
+    Attributes
+    ----------
+    pos : (n, d) float64 [m]
+    vel : (n, d) float64 [m/s]
+    rot : (n, 4) float64 unit quaternion (w, x, y, z) in 3D; (n, 1) angle [rad] in 2D
+    ang_vel : (n, 3) float64 [rad/s] world frame in 3D; (n, 1) in 2D
+    force : (n, d) float64 [N], the force of the last step
+    torque : (n, 3) or (n, 1) float64 [N m]
+    radius : (n,) float64 [m], bounding radius (the radius for spheres; 0 for planes)
+    mass : (n,) float64 [kg] (inf for fixed bodies)
+    inertia : (n, 3) or (n, 1) float64 principal moments [kg m^2]
+    kind : (n,) int32, :class:`dem.shapes.Shape` of each body
+    mat_id : (n,) int32, material row in the contact model's parameter table
+    is_fixed : (n,) bool, moved only by its prescribed ``vel``; forces do not act on it
+    normal : (n, d) float64, world-frame normal of plane bodies (zero rows otherwise)
+    """
+
+    dim: int
+    pos: np.ndarray
+    vel: np.ndarray
+    rot: np.ndarray
+    ang_vel: np.ndarray
+    force: np.ndarray
+    torque: np.ndarray
+    radius: np.ndarray
+    mass: np.ndarray
+    inertia: np.ndarray
+    kind: np.ndarray
+    mat_id: np.ndarray
+    is_fixed: np.ndarray
+    normal: np.ndarray
+    density: np.ndarray = field(default=None)
+
+    # ------------------------------------------------------------------ construction
+    @classmethod
+    def empty(cls, dim):
+        """A table with no bodies, for scenes of dimension ``dim`` (2 or 3)."""
+        if dim not in (2, 3):
+            raise ValueError(f"dimension must be 2 or 3, got {dim}")
+        nr = n_rot(dim)
+        z = lambda *s: np.zeros(s, dtype=np.float64)  # noqa: E731
+        return cls(dim=dim, pos=z(0, dim), vel=z(0, dim), rot=z(0, 4 if dim == 3 else 1),
+                   ang_vel=z(0, nr), force=z(0, dim), torque=z(0, nr), radius=z(0),
+                   mass=z(0), inertia=z(0, nr), kind=np.zeros(0, np.int32),
+                   mat_id=np.zeros(0, np.int32), is_fixed=np.zeros(0, bool),
+                   normal=z(0, dim), density=z(0))
+
+    @classmethod
+    def spheres(cls, pos, radius, density, vel=None, mat_id=0):
+        """Spheres (3D) or disks (2D) at ``pos``; the dimension is ``pos.shape[1]``.
+
+        Parameters
+        ----------
+        pos : (n, d) array_like [m], d = 2 or 3
+        radius : float or (n,) array_like [m], > 0
+        density : float or (n,) array_like [kg/m^3] (per unit thickness in 2D), > 0
+        vel : (n, d) array_like [m/s], optional
+        mat_id : int or (n,) array_like, material index
+
+        Examples
+        --------
+        >>> b = Bodies.spheres([[0.0, 0.0], [1.0, 0.0]], radius=0.5, density=1.0)
+        >>> b.dim, b.n, round(float(b.mass[0]), 6)
+        (2, 2, 0.785398)
+        """
+        pos = np.atleast_2d(np.asarray(pos, dtype=np.float64))
+        if pos.ndim != 2 or pos.shape[1] not in (2, 3):
+            raise ValueError(f"pos must have shape (n, 2) or (n, 3), got {pos.shape}")
+        b = cls.empty(pos.shape[1])
+        b.add_spheres(pos, radius, density, vel=vel, mat_id=mat_id)
+        return b
+
+    def add_spheres(self, pos, radius, density, vel=None, mat_id=0):
+        """Append spheres/disks; returns their body indices (int32 array)."""
+        pos = np.atleast_2d(np.asarray(pos, dtype=np.float64))
+        n, d = pos.shape
+        if d != self.dim:
+            raise ValueError(f"pos has dimension {d}, the scene is {self.dim}D")
+        radius = np.broadcast_to(np.asarray(radius, dtype=np.float64), (n,)).copy()
+        density = np.broadcast_to(np.asarray(density, dtype=np.float64), (n,)).copy()
+        if not np.all(np.isfinite(pos)):
+            raise ValueError("pos must be finite")
+        if not np.all(radius > 0.0) or not np.all(np.isfinite(radius)):
+            raise ValueError("radius must be positive and finite")
+        if not np.all(density > 0.0) or not np.all(np.isfinite(density)):
+            raise ValueError("density must be positive and finite")
+        shapes = [Sphere(r) for r in radius[: min(n, 1)]]  # validates the first cheaply
+        del shapes
+        vol = 4.0 / 3.0 * np.pi * radius**3 if d == 3 else np.pi * radius**2
+        mass = density * vol
+        nr = n_rot(d)
+        k = 0.4 if d == 3 else 0.5
+        inertia = np.repeat((k * mass * radius**2)[:, None], nr, axis=1)
+        rot = np.zeros((n, 4 if d == 3 else 1))
+        if d == 3:
+            rot[:, 0] = 1.0
+        v = np.zeros((n, d)) if vel is None else np.broadcast_to(
+            np.asarray(vel, dtype=np.float64), (n, d)).copy()
+        return self._append(pos=pos, vel=v, rot=rot, radius=radius, mass=mass,
+                            inertia=inertia, kind=Shape.SPHERE, mat_id=mat_id,
+                            is_fixed=False, normal=np.zeros((n, d)), density=density)
+
+    def add_plane(self, point, normal, velocity=None, mat_id=0):
+        """Append a wall through ``point`` (d,) [m] with free-side ``normal`` (d,).
+
+        The wall is a fixed body: it moves with its prescribed ``velocity`` (d,) [m/s]
+        and forces do not act on it. Returns its body index.
+        """
+        shape = Plane(normal)
+        point = np.asarray(point, dtype=np.float64).reshape(1, -1)
+        if point.shape[1] != self.dim or shape.normal.shape[0] != self.dim:
+            raise ValueError(f"a wall in a {self.dim}D scene needs {self.dim}D point and normal")
+        v = np.zeros((1, self.dim)) if velocity is None else np.asarray(
+            velocity, dtype=np.float64).reshape(1, self.dim)
+        rot = np.zeros((1, 4 if self.dim == 3 else 1))
+        if self.dim == 3:
+            rot[:, 0] = 1.0
+        idx = self._append(pos=point, vel=v, rot=rot, radius=np.zeros(1),
+                           mass=np.full(1, np.inf), inertia=np.full((1, n_rot(self.dim)), np.inf),
+                           kind=Shape.PLANE, mat_id=mat_id, is_fixed=True,
+                           normal=shape.normal[None, :], density=np.zeros(1))
+        return int(idx[0])
+
+    def _append(self, *, pos, vel, rot, radius, mass, inertia, kind, mat_id, is_fixed,
+                normal, density):
+        n0, n = self.n, pos.shape[0]
+        nr = n_rot(self.dim)
+
+        def cat(a, b):
+            return np.ascontiguousarray(np.concatenate([a, b], axis=0))
+
+        self.pos = cat(self.pos, pos)
+        self.vel = cat(self.vel, vel)
+        self.rot = cat(self.rot, rot)
+        self.ang_vel = cat(self.ang_vel, np.zeros((n, nr)))
+        self.force = cat(self.force, np.zeros((n, self.dim)))
+        self.torque = cat(self.torque, np.zeros((n, nr)))
+        self.radius = cat(self.radius, radius)
+        self.mass = cat(self.mass, mass)
+        self.inertia = cat(self.inertia, inertia)
+        self.kind = cat(self.kind, np.full(n, int(kind), np.int32))
+        self.mat_id = cat(self.mat_id, np.broadcast_to(np.asarray(mat_id, np.int32), (n,)))
+        self.is_fixed = cat(self.is_fixed, np.full(n, bool(is_fixed)))
+        self.normal = cat(self.normal, normal)
+        self.density = cat(self.density, density)
+        return np.arange(n0, n0 + n, dtype=np.int32)
+
+    # ------------------------------------------------------------------ queries
+    @property
+    def n(self):
+        """Number of bodies (walls included)."""
+        return self.pos.shape[0]
+
+    @property
+    def n_rot(self):
+        return n_rot(self.dim)
+
+    def ids(self, kind):
+        """Indices (int32) of the bodies of one :class:`Shape` kind."""
+        return np.flatnonzero(self.kind == int(kind)).astype(np.int32)
+
+    def fix(self, ids, velocity=None):
+        """Make bodies fixed: forces no longer act on them; they move at ``velocity``."""
+        ids = np.atleast_1d(np.asarray(ids, dtype=np.int64))
+        self.is_fixed[ids] = True
+        self.vel[ids] = 0.0 if velocity is None else np.asarray(velocity, dtype=np.float64)
+        self.ang_vel[ids] = 0.0
+
+    def set_radius(self, ids, radius):
+        """Change sphere radii [m] keeping the density: mass and inertia follow."""
+        ids = np.atleast_1d(np.asarray(ids, dtype=np.int64))
+        radius = np.broadcast_to(np.asarray(radius, dtype=np.float64), ids.shape)
+        self.radius[ids] = radius
+        vol = 4.0 / 3.0 * np.pi * radius**3 if self.dim == 3 else np.pi * radius**2
+        free = ~self.is_fixed[ids]
+        m = self.density[ids] * vol
+        self.mass[ids[free]] = m[free]
+        k = 0.4 if self.dim == 3 else 0.5
+        self.inertia[ids[free]] = (k * m * radius**2)[free, None]
+
+    ARRAYS = ("pos", "vel", "rot", "ang_vel", "force", "torque", "radius", "mass",
+              "inertia", "kind", "mat_id", "is_fixed", "normal", "density")
+
+    def copy(self):
+        """A deep copy of the table."""
+        return Bodies(dim=self.dim, **{k: getattr(self, k).copy() for k in self.ARRAYS})

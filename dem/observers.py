@@ -148,7 +148,9 @@ def contact_summary(sim):
     shapes = {"i": (0,), "j": (0,), "normal": (0, d), "overlap": (0,), "x1": (0, d),
               "x2": (0, d), "branch": (0, d), "force": (0, d), "arm_i": (0, d),
               "arm_j": (0, d), "kn": (0,), "kt": (0,), "is_wall": (0,)}
-    return {k: (np.concatenate(v) if v else np.zeros(shapes[k])) for k, v in out.items()}
+    dtypes = {"i": np.int64, "j": np.int64, "is_wall": bool}
+    return {k: (np.concatenate(v) if v else np.zeros(shapes[k], dtypes.get(k, np.float64)))
+            for k, v in out.items()}
 
 
 def _stiffness(sim, bucket, ov, r_eff, ma, mb):

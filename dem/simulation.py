@@ -3,6 +3,7 @@
 import logging
 import math
 
+import numba
 import numpy as np
 
 from .contact.loops import NONFINITE, OK, OVERLAP, REBUILD, stepper
@@ -15,6 +16,8 @@ log = logging.getLogger(__name__)
 #: default time step as a fraction of the critical step (chosen from the
 #: speed-accuracy chart, docs/performance.md)
 DT_FACTOR = 0.15
+#: scenes with fewer bodies run on one thread unless told otherwise
+PARALLEL_MIN_BODIES = 1000
 
 
 class SimulationError(RuntimeError):
@@ -29,6 +32,8 @@ def critical_time_step(bodies, model):
     where a tangential spring counts with its rotational coupling ``1 + m r^2 / I``.
     Returns ``(dt_crit, m_min, k_max)``.
     """
+    if not isinstance(model, ContactModel):
+        model = ContactModel(model)
     free = (~bodies.is_fixed) & (bodies.kind == Shape.SPHERE)
     if not free.any():
         return math.inf, math.inf, 0.0
@@ -61,6 +66,10 @@ class Simulation:
     overlap_limit : float
         A contact whose overlap exceeds this fraction of the smaller radius stops the
         run (default 0.5).
+    threads : int, optional
+        Threads for the compiled loops; default all of numba's threads for scenes of
+        at least ``PARALLEL_MIN_BODIES`` bodies, else 1 (threads only cost time on
+        small scenes). Results do not depend on it.
     observers, controllers, state_objects : sequences
         Observers read the state when their trigger fires after a step; controllers
         may change it when their trigger fires before a step; state objects are
@@ -69,7 +78,7 @@ class Simulation:
 
     def __init__(self, bodies, model, dt=None, gravity=None, damping=0.0, skin=None,
                  box=None, neighbor_backend="cell", overlap_limit=0.5, observers=(),
-                 controllers=(), state_objects=(), allow_unstable_dt=False):
+                 controllers=(), state_objects=(), allow_unstable_dt=False, threads=None):
         if not isinstance(model, ContactModel):
             model = ContactModel(model)
         self.bodies = bodies
@@ -108,6 +117,9 @@ class Simulation:
         self.observers = list(observers)
         self.controllers = list(controllers)
         self.state_objects = list(state_objects)
+        if threads is None:
+            threads = numba.config.NUMBA_NUM_THREADS if bodies.n >= PARALLEL_MIN_BODIES else 1
+        self.threads = max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS))
         self.step = 0
         self.time = 0.0
         self.wall_work = np.zeros(1)
@@ -140,6 +152,8 @@ class Simulation:
         if old[0] is not None and old[1] is not None:
             carry_history(old[0], old[1], nl.pairs, self.hist)
             carry_history(old[2], old[3], nl.wall_pairs, self.whist)
+        # a pair with history was touching; others are found by the next force pass
+        self.touch = np.any(self.hist != 0.0, axis=1).astype(np.uint8)
         self.fpair = np.zeros((m, d))
         self.tpi = np.zeros((m, nr))
         self.tpj = np.zeros((m, nr))
@@ -159,14 +173,14 @@ class Simulation:
         incidence(nl.pairs, n, 1, self._jstart, self._jlist)
         incidence(nl.wall_pairs, n, 0, self._wstart, np.zeros(nl.wall_pairs.shape[0], np.int64))
 
-    def _call(self, n_steps, prime):
+    def _call(self, n_steps, prime, resume=False):
         b, nl = self.bodies, self.neighbors
         return self._kernel(
-            n_steps, prime, self.dt, self.gravity, self.damping, nl.skin, self.overlap_limit,
-            b.pos, b.vel, b.rot, b.ang_vel, b.force, b.torque, b.radius, self._inv_mass,
-            self._inv_inertia, self._fixed, b.normal, b.mat_id, nl.pos_ref, self._hmat,
-            nl.pairs, nl.img, self.hist, self.fpair, self.tpi, self.tpj, self._pstart,
-            self._jstart, self._jlist, self._params_pp,
+            n_steps, prime, resume, self.dt, self.gravity, self.damping, nl.skin,
+            self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel, b.force, b.torque, b.radius,
+            b.mass, self._inv_mass, self._inv_inertia, self._fixed, b.normal, b.mat_id,
+            nl.pos_ref, self._hmat, nl.pairs, nl.img, self.touch, self.hist, self.fpair,
+            self.tpi, self.tpj, self._pstart, self._jstart, self._jlist, self._params_pp,
             nl.wall_pairs, self.whist, self.wforce, self.wtorque, self._wstart,
             self._params_pw, self._status, self.wall_work)
 
@@ -202,6 +216,8 @@ class Simulation:
         n_steps = int(n_steps)
         if n_steps < 0:
             raise ValueError("n_steps must be >= 0")
+        threads_before = numba.get_num_threads()
+        numba.set_num_threads(self.threads)
         self.prime()
         end = self.step + n_steps
         bar = _progress(n_steps, progress)
@@ -228,18 +244,23 @@ class Simulation:
                     if o.trigger(self.step):
                         o(self)
         finally:
+            numba.set_num_threads(threads_before)
             if bar is not None:
                 bar.close()
 
     def _advance(self, n):
+        resume = False
+        snapshot = None
         while n > 0:
-            snapshot = self._snapshot_bodies()
-            done = self._call(n, False)
+            if not resume:  # a chunk resumed mid-step keeps the snapshot of its start
+                snapshot = self._snapshot_bodies()
+            done = self._call(n, False, resume)
             self.step += done
             self.time = self.step * self.dt
             n -= done
             code = self._status[0]
-            if code == REBUILD:
+            resume = code == REBUILD  # stopped mid-step, after the drift
+            if resume:
                 self._rebuild()
                 continue
             self._check_status(snapshot)

@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .shapes import Plane, Shape, Sphere
+from .shapes import Plane, Shape
 
 
 def n_rot(dim):
@@ -109,8 +109,6 @@ class Bodies:
             raise ValueError("radius must be positive and finite")
         if not np.all(density > 0.0) or not np.all(np.isfinite(density)):
             raise ValueError("density must be positive and finite")
-        shapes = [Sphere(r) for r in radius[: min(n, 1)]]  # validates the first cheaply
-        del shapes
         vol = 4.0 / 3.0 * np.pi * radius**3 if d == 3 else np.pi * radius**2
         mass = density * vol
         nr = n_rot(d)

@@ -2,8 +2,9 @@
 
 A law kernel takes one contact's summary (overlap ``ov`` > 0, unit normal ``n`` from
 the home body i to the neighbour j), the velocity ``v`` of j relative to i at the contact
-point, the contact's effective radius and mass, the pair's parameter row ``p`` and the
-contact's history row ``hist[k]``, and returns the force on j (i gets the opposite). The
+point, the contact's effective radius and mass, the parameter table ``p`` with the
+materials ``a``, ``b`` of the pair (it reads ``p[a, b, :]``: no array view is made in the
+hot loop) and the contact's history row ``hist[k]``, and returns the force on j (i gets the opposite). The
 history row holds the tangential spring (elongation vector, 3 components, [m]); it is
 updated in place and reset by the caller when the contact opens. Vectors are passed as
 three scalars: 2D contacts pass ``z = 0``.
@@ -29,15 +30,17 @@ N_HIST = 3  # tangential spring vector
 
 # --------------------------------------------------------------------------- linear
 @kernel
-def law_linear(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, hist, k, dt):
+def law_linear(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt):
     """Linear spring-dashpot normal force, tangential history spring, Coulomb cap.
 
-    ``p = (kn [N/m], kt [N/m], gamma_n [N s/m], gamma_t [N s/m], zeta [-], mu [-])``.
+    ``p[a, b] = (kn [N/m], kt [N/m], gamma_n [N s/m], gamma_t [N s/m], zeta [-], mu [-])``
+    for materials ``a``, ``b``.
     The normal dashpot is ``gamma_n + 2 zeta sqrt(kn m_eff)``: a fixed coefficient
     (paper eq 19) plus a damping ratio (restitution-based, as in LAMMPS/LIGGGHTS).
     The paper's elastic law (eqs 16-18) is this law with both dashpots zero.
     """
-    kn, kt, gn, gt, zeta, mu = p[0], p[1], p[2], p[3], p[4], p[5]
+    kn, kt, gn, gt = p[a, b, 0], p[a, b, 1], p[a, b, 2], p[a, b, 3]
+    zeta, mu = p[a, b, 4], p[a, b, 5]
     cn = gn + 2.0 * zeta * math.sqrt(kn * m_eff)
     vn = vx * nx + vy * ny + vz * nz
     fn = kn * ov - cn * vn  # approaching (vn < 0) adds repulsion
@@ -72,24 +75,24 @@ def energy_linear(ov, r_eff, p, hist, k):
 
 # --------------------------------------------------------------------------- Hertz-Mindlin
 @kernel
-def law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, hist, k, dt):
+def law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt):
     """Hertz normal force, Mindlin (no-slip) tangential stiffness, restitution damping.
 
-    ``p = (E* [Pa], G* [Pa], beta [-], mu [-])`` with ``beta = ln e / sqrt(ln^2 e + pi^2)``
+    ``p[a, b] = (E* [Pa], G* [Pa], beta [-], mu [-])`` with ``beta = ln e / sqrt(ln^2 e + pi^2)``
     (negative). With ``a = sqrt(r_eff ov)``: ``Sn = 2 E* a``, ``St = 8 G* a``,
     ``fn = 4/3 E* a ov - 2 sqrt(5/6) beta sqrt(Sn m_eff) vn`` and the tangential spring
     force ``-St s - 2 sqrt(5/6) beta sqrt(St m_eff) vt``, capped by Coulomb (the forms
     used by LIGGGHTS' hertz model and YADE's Hertz-Mindlin law).
     """
-    es, gs, beta, mu = p[0], p[1], p[2], p[3]
-    a = math.sqrt(r_eff * ov)
-    sn_k = 2.0 * es * a
-    st_k = 8.0 * gs * a
+    es, gs, beta, mu = p[a, b, 0], p[a, b, 1], p[a, b, 2], p[a, b, 3]
+    rad = math.sqrt(r_eff * ov)
+    sn_k = 2.0 * es * rad
+    st_k = 8.0 * gs * rad
     c = -2.0 * math.sqrt(5.0 / 6.0) * beta
     cn = c * math.sqrt(sn_k * m_eff)
     ct = c * math.sqrt(st_k * m_eff)
     vn = vx * nx + vy * ny + vz * nz
-    fn = 4.0 / 3.0 * es * a * ov - cn * vn
+    fn = 4.0 / 3.0 * es * rad * ov - cn * vn
     tvx, tvy, tvz = vx - vn * nx, vy - vn * ny, vz - vn * nz
     sn = hist[k, 0] * nx + hist[k, 1] * ny + hist[k, 2] * nz
     sx = hist[k, 0] - sn * nx + tvx * dt

@@ -7,10 +7,11 @@ a 2D scene runs 2D code and a scene runs only the laws it uses. Kernels are memo
 
 One step, in this order (the ``Simulation.run`` contract):
 
-1. if a body moved more than ``skin / 2`` since the neighbour build: stop, status
-   ``REBUILD`` (Python rebuilds the list and calls again);
-2. half kick and drift of free bodies (``v += dt/2 F/m``, ``x += dt v``, angle or
+1. half kick and drift of free bodies (``v += dt/2 F/m``, ``x += dt v``, angle or
    quaternion update); fixed bodies drift at their prescribed velocity;
+2. if a body is now more than ``skin / 2`` from where the neighbour list was built:
+   stop with status ``REBUILD``; Python rebuilds the list and calls again with
+   ``resume=True``, which finishes this step from 3;
 3. sphere-sphere contacts (parallel over pairs): overlap, relative velocity at the
    contact point, law -> per-pair force and the two torques;
 4. sphere-wall contacts (parallel over pairs), likewise;
@@ -18,7 +19,8 @@ One step, in this order (the ``Simulation.run`` contract):
    forces, gravity, local damping, second half kick.
 
 Per-pair results are gathered per body in a fixed order, never scattered with atomics,
-so the result does not depend on the number of threads.
+so the result does not depend on the number of threads. ``touch[k]`` marks the pairs in
+contact at the last force evaluation; only those are gathered.
 """
 
 import math
@@ -47,17 +49,19 @@ def stepper(dim, law_pp, law_pw):
     DIM, PP, PW = key
 
     @kernel(parallel=True)
-    def run_steps(n_steps, prime, dt, gravity, damping, skin, overlap_limit,
-                  pos, vel, rot, ang_vel, force, torque, radius, inv_mass, inv_inertia,
-                  is_fixed, normal, mat_id, pos_ref, hmat,
-                  pairs, img, hist, fpair, tpi, tpj, pstart, jstart, jlist, params_pp,
-                  wpairs, whist, wforce, wtorque, wstart, params_pw,
+    def run_steps(n_steps, prime, resume, dt, gravity, damping, skin, overlap_limit,
+                  pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass,
+                  inv_inertia, is_fixed, normal, mat_id, pos_ref, hmat,
+                  pairs, img, touch, hist, fpair, tpi, tpj, pstart, jstart, jlist,
+                  params_pp, wpairs, whist, wforce, wtorque, wstart, params_pw,
                   status_out, work_out):
         """Advance ``n_steps``; returns the number of completed steps.
 
         ``prime`` = True computes forces at the current state without moving anything
-        (tangential springs are not advanced). ``status_out`` (4,) int64 receives
-        (code, i, j, 0); ``work_out`` (1,) accumulates the work of walls on bodies [J].
+        (tangential springs are not advanced). ``resume`` = True finishes a step whose
+        drift was done by the previous call (which stopped with ``REBUILD``).
+        ``status_out`` (4,) int64 receives (code, i, j, 0); ``work_out`` (1,)
+        accumulates the work of walls on bodies [J].
         """
         n = pos.shape[0]
         m = pairs.shape[0]
@@ -67,28 +71,26 @@ def stepper(dim, law_pp, law_pw):
         half = 0.5 * dt
         hdt = 0.0 if prime else dt
         n_iter = 1 if prime else n_steps
-        for _ in range(n_iter):
-            if not prime:
-                # ---- 1. neighbour list still valid?
+        for it in range(n_iter):
+            if not prime and not (resume and it == 0):
+                # ---- 1. half kick + drift
                 maxd2 = 0.0
                 for b in numba.prange(n):
-                    s = 0.0
-                    for a in range(DIM):
-                        dx = pos[b, a] - pos_ref[b, a]
-                        s += dx * dx
-                    maxd2 = max(maxd2, s)
-                if 4.0 * maxd2 > skin * skin:
-                    status_out[0] = REBUILD
-                    return done
-                # ---- 2. half kick + drift
-                for b in numba.prange(n):
                     if is_fixed[b]:
+                        s2 = 0.0
                         for a in range(DIM):
                             pos[b, a] += dt * vel[b, a]
+                            dx = pos[b, a] - pos_ref[b, a]
+                            s2 += dx * dx
+                        maxd2 = max(maxd2, s2)
                         continue
+                    s2 = 0.0
                     for a in range(DIM):
                         vel[b, a] += half * force[b, a] * inv_mass[b]
                         pos[b, a] += dt * vel[b, a]
+                        dx = pos[b, a] - pos_ref[b, a]
+                        s2 += dx * dx
+                    maxd2 = max(maxd2, s2)
                     if DIM == 2:
                         ang_vel[b, 0] += half * torque[b, 0] * inv_inertia[b, 0]
                         rot[b, 0] += dt * ang_vel[b, 0]
@@ -107,6 +109,10 @@ def stepper(dim, law_pp, law_pw):
                         rot[b, 1] = rw * qx + rx * qw + ry * qz - rz * qy
                         rot[b, 2] = rw * qy - rx * qz + ry * qw + rz * qx
                         rot[b, 3] = rw * qz + rx * qy - ry * qx + rz * qw
+                # ---- 2. the neighbour list must hold for the new positions
+                if 4.0 * maxd2 > skin * skin:
+                    status_out[0] = REBUILD
+                    return done
             # ---- 3. sphere-sphere contacts
             for k in numba.prange(m):
                 i = pairs[k, 0]
@@ -130,15 +136,13 @@ def stepper(dim, law_pp, law_pw):
                 dist2 = dx * dx + dy * dy + dz * dz
                 cut = ri + rj
                 if dist2 >= cut * cut:
-                    hist[k, 0] = 0.0
-                    hist[k, 1] = 0.0
-                    hist[k, 2] = 0.0
-                    for a in range(DIM):
-                        fpair[k, a] = 0.0
-                    for a in range(tpi.shape[1]):
-                        tpi[k, a] = 0.0
-                        tpj[k, a] = 0.0
+                    if touch[k]:  # the contact opened: its history ends
+                        touch[k] = 0
+                        hist[k, 0] = 0.0
+                        hist[k, 1] = 0.0
+                        hist[k, 2] = 0.0
                     continue
+                touch[k] = 1
                 dist = math.sqrt(dist2)
                 inv = 1.0 / dist
                 nx, ny, nz = dx * inv, dy * inv, dz * inv
@@ -165,12 +169,14 @@ def stepper(dim, law_pp, law_pw):
                     vz = vel[j, 2] - vel[i, 2] - (sx * ny - sy * nx)
                 r_eff = ri * rj / (ri + rj)
                 m_eff = 1.0 / (inv_mass[i] + inv_mass[j])
-                p = params_pp[mat_id[i], mat_id[j]]
+                ma, mb = mat_id[i], mat_id[j]
                 # one branch per law code; PP is a constant, the others are pruned
                 if PP == 0:
-                    fx, fy, fz = law_linear(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, hist, k, hdt)
+                    fx, fy, fz = law_linear(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff,
+                                            params_pp, ma, mb, hist, k, hdt)
                 else:
-                    fx, fy, fz = law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, hist, k, hdt)
+                    fx, fy, fz = law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff,
+                                                   params_pp, ma, mb, hist, k, hdt)
                 fpair[k, 0] = fx
                 fpair[k, 1] = fy
                 if DIM == 2:
@@ -222,11 +228,13 @@ def stepper(dim, law_pp, law_pw):
                     vy = vel[w, 1] - vel[i, 1] - (sz * nx - sx * nz)
                     vz = vel[w, 2] - vel[i, 2] - (sx * ny - sy * nx)
                 m_eff = 1.0 / inv_mass[i]
-                p = params_pw[mat_id[i], mat_id[w]]
+                ma, mb = mat_id[i], mat_id[w]
                 if PW == 0:
-                    fx, fy, fz = law_linear(ov, nx, ny, nz, vx, vy, vz, ri, m_eff, p, whist, k, hdt)
+                    fx, fy, fz = law_linear(ov, nx, ny, nz, vx, vy, vz, ri, m_eff,
+                                            params_pw, ma, mb, whist, k, hdt)
                 else:
-                    fx, fy, fz = law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, ri, m_eff, p, whist, k, hdt)
+                    fx, fy, fz = law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, ri, m_eff,
+                                                   params_pw, ma, mb, whist, k, hdt)
                 # force on the sphere is -f; torque li n x (-f)
                 wforce[k, 0] = -fx
                 wforce[k, 1] = -fy
@@ -252,6 +260,8 @@ def stepper(dim, law_pp, law_pw):
                 ty = 0.0
                 tz = 0.0
                 for k in range(pstart[b], pstart[b + 1]):
+                    if not touch[k]:
+                        continue
                     fx -= fpair[k, 0]
                     fy -= fpair[k, 1]
                     tx += tpi[k, 0]
@@ -261,6 +271,8 @@ def stepper(dim, law_pp, law_pw):
                         tz += tpi[k, 2]
                 for q in range(jstart[b], jstart[b + 1]):
                     k = jlist[q]
+                    if not touch[k]:
+                        continue
                     fx += fpair[k, 0]
                     fy += fpair[k, 1]
                     tx += tpj[k, 0]
@@ -276,7 +288,7 @@ def stepper(dim, law_pp, law_pw):
                         fz += wforce[k, 2]
                         ty += wtorque[k, 1]
                         tz += wtorque[k, 2]
-                mb = 1.0 / inv_mass[b]
+                mb = mass[b]
                 fx += mb * gravity[0]
                 fy += mb * gravity[1]
                 if DIM == 3:

@@ -1,0 +1,174 @@
+"""The ``dem`` command; ``dem run scene.toml`` runs a TOML scene (:mod:`dem.io.scene`).
+
+Exit status: 0 on success, 1 when the simulation fails (:class:`dem.SimulationError`),
+2 on bad input (invalid scene, unreadable file, existing output, bad arguments). Errors
+are one line on stderr, ``dem: error: ...``, never a traceback.
+"""
+
+import argparse
+import logging
+import sys
+import time
+from pathlib import Path
+
+log = logging.getLogger(__name__)
+
+EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line, ``dem: error: ...``."""
+
+    def error(self, message):
+        raise _UsageError(f"{message} (see '{self.prog} --help')")
+
+
+class _UsageError(Exception):
+    pass
+
+
+def _parser():
+    parser = _Parser(prog="dem", description="DEM simulations from TOML scene files.")
+    parser.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
+                        help="more log messages (-vv for debug)")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    run = sub.add_parser(
+        "run", help="run a scene file",
+        description="Validate, build and run a TOML scene; write HDF5 output.",
+        epilog="The scene format is documented in dem.io.scene (SCHEMA). Exit status: "
+               "0 done, 1 the simulation failed, 2 bad input.")
+    run.add_argument("scene", type=Path, help="the scene file (TOML)")
+    run.add_argument("-o", "--output", type=Path, metavar="DIR",
+                     help="output directory (overrides [output] dir)")
+    run.add_argument("--overwrite", action="store_true",
+                     help="replace existing output files")
+    run.add_argument("--steps", type=int, metavar="N",
+                     help="number of steps (overrides [simulation] steps)")
+    run.add_argument("--dry-run", action="store_true",
+                     help="validate and build the scene, then stop")
+    run.add_argument("--no-progress", action="store_true", help="no progress bar")
+    run.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
+                     help="more log messages (-vv for debug)")
+    run.set_defaults(func=_cmd_run)
+    return parser
+
+
+def main(argv=None):
+    """Entry point of the ``dem`` console script and of ``python -m dem``.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name (default ``sys.argv[1:]``).
+
+    Raises
+    ------
+    SystemExit
+        Always, with the exit status (0 ok, 1 simulation failure, 2 bad input).
+    """
+    handler = logging.StreamHandler(sys.stderr)
+    handler.setFormatter(logging.Formatter("dem: %(levelname)s: %(message)s"))
+    root = logging.getLogger("dem")
+    old_level = root.level
+    root.addHandler(handler)
+    try:
+        try:
+            args = _parser().parse_args(argv)
+        except _UsageError as exc:
+            code = _error(str(exc), EXIT_USAGE)
+        else:
+            verbose = getattr(args, "verbose", 0)
+            root.setLevel(logging.DEBUG if verbose > 1 else logging.INFO if verbose
+                          else logging.WARNING)
+            if args.command is None:
+                code = _error("a command is required (see 'dem --help')", EXIT_USAGE)
+            else:
+                code = args.func(args)
+    finally:
+        root.removeHandler(handler)
+        root.setLevel(old_level)
+    raise SystemExit(code)
+
+
+def _error(msg, code):
+    print("dem: error: " + " ".join(str(msg).split()), file=sys.stderr)
+    return code
+
+
+def _cmd_run(args):
+    from .io.scene import SceneError, build_simulation, load_scene
+    from .simulation import SimulationError
+
+    try:
+        scene = load_scene(args.scene)
+        if args.steps is not None:
+            if args.steps < 0:
+                raise SceneError(f"--steps must be >= 0, got {args.steps}")
+            scene["simulation"]["steps"] = args.steps
+        sim, output = build_simulation(scene)
+    except SceneError as exc:
+        return _error(exc, EXIT_USAGE)
+    out_file = output.file if args.output is None else args.output / output.file.name
+    n_steps = scene["simulation"]["steps"]
+    if args.dry_run:
+        print(f"{args.scene}: valid; {_bodies_line(sim)}; {n_steps} steps of "
+              f"dt = {sim.dt:.4g} s; output {out_file}")
+        return EXIT_OK
+    try:
+        writer = _open_writer(out_file, output, args.overwrite)
+    except OSError as exc:  # existing output, or the directory cannot be made
+        return _error(exc, EXIT_USAGE)
+    if writer is not None:
+        sim.observers.append(writer)
+    progress = sys.stderr.isatty() and not args.no_progress and n_steps > 0
+    t_start = time.perf_counter()
+    try:
+        sim.prime()  # neighbour lists and first forces; compiles the loop on first use
+        if writer is not None:
+            writer(sim)  # the initial frame; the run adds one every `every` steps
+        t0 = time.perf_counter()
+        sim.run(n_steps, progress=progress)
+    except SimulationError as exc:
+        return _error(f"simulation failed: {exc}", EXIT_FAILED)
+    except KeyboardInterrupt:
+        return _error(f"interrupted at step {sim.step}", 130)
+    finally:
+        if writer is not None:
+            writer.close()
+    wall = time.perf_counter() - t0
+    rate = f" ({n_steps / wall:.3g} steps/s)" if wall > 0 and n_steps else ""
+    print(f"dem run {args.scene}: {_bodies_line(sim)}\n"
+          f"  steps      {n_steps} x dt = {sim.dt:.4g} s = {sim.time:.4g} s simulated\n"
+          f"  wall time  {wall:.3g} s{rate} + {t0 - t_start:.3g} s start-up\n"
+          f"  output     {out_file if writer is not None else 'none (no HDF5 writer)'}")
+    return EXIT_OK
+
+
+def _bodies_line(sim):
+    from .shapes import Shape
+
+    b = sim.bodies
+    n_sph, n_wall = len(b.ids(Shape.SPHERE)), len(b.ids(Shape.PLANE))
+    return (f"{n_sph} {'spheres' if b.dim == 3 else 'disks'}, {n_wall} walls "
+            f"({b.dim}D)")
+
+
+def _open_writer(path, output, overwrite):
+    """The HDF5 observer writing to ``path``, or None where no writer is available.
+
+    Refuses (FileExistsError) to replace an existing HDF5 or XDMF file unless
+    ``overwrite``.
+    """
+    existing = [p for p in (path, path.with_suffix(".xdmf")) if p.exists()]
+    if existing and not overwrite:
+        raise FileExistsError(f"output file {existing[0]} exists; pass --overwrite to "
+                              f"replace it or choose another directory with --output")
+    try:
+        from .io.hdf5 import H5Writer
+    except ImportError as exc:
+        log.warning("HDF5 output disabled, the writer is not available: %s", exc)
+        return None
+    path.parent.mkdir(parents=True, exist_ok=True)
+    for p in existing:
+        p.unlink()
+    return H5Writer(path, every=output.every, contacts=output.contacts)

@@ -1,0 +1,20 @@
+"""Output and restart: HDF5 time series with XDMF side files, checkpoints, dumps.
+
+- :class:`H5Writer`: observer writing particle frames and contacts to HDF5, with an
+  XDMF file for ParaView (:func:`write_xdmf`); :func:`read_frame` reads one back;
+- :func:`save_checkpoint` / :func:`load_checkpoint`: the full simulation state, so a
+  restarted run continues bit for bit;
+- :func:`write_last_good_state`: a :meth:`~dem.Simulation.on_failure` hook saving the
+  last good bodies (:func:`read_bodies` reads them back).
+
+Every file is written to ``path + ".tmp"`` and renamed into place, so a killed run
+never leaves a truncated file under the final name.
+"""
+
+from .checkpoint import (load_checkpoint, read_bodies, save_checkpoint, write_bodies,
+                         write_last_good_state)
+from .hdf5 import H5Writer, read_frame
+from .xdmf import write_xdmf
+
+__all__ = ["H5Writer", "load_checkpoint", "read_bodies", "read_frame",
+           "save_checkpoint", "write_bodies", "write_last_good_state", "write_xdmf"]

@@ -1,0 +1,374 @@
+"""Checkpoint and restart that continue a run bit for bit; failure output.
+
+A checkpoint is an HDF5 file holding the full state of a :class:`~dem.Simulation`::
+
+    /            attrs: format = "dem.checkpoint", version, dim, step, time [s], dt [s],
+                        damping, overlap_limit, skin [m], backend, n_builds, has_box
+    /gravity     (d,) [m/s^2]          /wall_work (1,) [J]
+    /bodies/     every array of Bodies.ARRAYS (attrs: dim)
+    /neighbors/  pairs (m, 2) int32, img (m, d) int32, wall_pairs (mw, 2) int32,
+                 pos_ref (n, d) [m]
+    /box/        lo, hi (d,) [m], periodic (d,) bool (only if the scene has a box)
+    /contacts/   per sphere pair: hist (m, 3), touch (m,) uint8, fpair (m, d), tpi, tpj;
+                 per sphere-wall pair: whist (mw, 3), wforce (mw, d), wtorque;
+                 radius_ref (n,), the radii at the last neighbour build
+    /model/      params_pp, params_pw: the parameter tables in use (a restart with
+                 other tables is allowed but logged as a warning)
+
+Observers, controllers and state objects are not saved: pass them again to
+:func:`load_checkpoint`. The contact model is code, not data: pass it too.
+
+A file written by :func:`write_last_good_state` holds only ``/bodies`` (format
+``"dem.bodies"``); read it back with :func:`read_bodies`.
+"""
+
+import logging
+import os
+
+import h5py
+import numpy as np
+
+from ..neighbors import Box
+from ..simulation import Simulation
+from ..state import Bodies
+from .hdf5 import publish
+
+log = logging.getLogger(__name__)
+
+FORMAT = "dem.checkpoint"
+BODIES_FORMAT = "dem.bodies"
+VERSION = 1
+
+_F8, _I4 = np.dtype(np.float64), np.dtype(np.int32)
+_U1, _B = np.dtype(np.uint8), np.dtype(bool)
+
+#: simulation arrays, per pair and per wall pair: (name, trailing shape key, dtype)
+_PAIR_ARRAYS = (("hist", "3", _F8), ("touch", "", _U1), ("fpair", "d", _F8),
+                ("tpi", "r", _F8), ("tpj", "r", _F8))
+_WALL_ARRAYS = (("whist", "3", _F8), ("wforce", "d", _F8), ("wtorque", "r", _F8))
+
+
+def _body_spec(dim):
+    nr = 1 if dim == 2 else 3
+    return {"pos": ((dim,), _F8), "vel": ((dim,), _F8),
+            "rot": ((4 if dim == 3 else 1,), _F8), "ang_vel": ((nr,), _F8),
+            "force": ((dim,), _F8), "torque": ((nr,), _F8),
+            "radius": ((), _F8), "mass": ((), _F8), "inertia": ((nr,), _F8),
+            "kind": ((), _I4), "mat_id": ((), _I4), "is_fixed": ((), _B),
+            "normal": ((dim,), _F8), "density": ((), _F8)}
+
+
+def _trailing(key, dim):
+    return {"": (), "3": (3,), "d": (dim,), "r": (1 if dim == 2 else 3,)}[key]
+
+
+# ------------------------------------------------------------------ bodies
+def _write_bodies(group, bodies):
+    group.attrs["dim"] = int(bodies.dim)
+    for name in Bodies.ARRAYS:
+        group.create_dataset(name, data=getattr(bodies, name))
+
+
+def _read_bodies(path, group):
+    """Bodies from ``group``, every array checked for shape and dtype."""
+    if "dim" not in group.attrs or int(group.attrs["dim"]) not in (2, 3):
+        raise ValueError(f"{path}: bodies need a dim attribute of 2 or 3")
+    dim = int(group.attrs["dim"])
+    if "pos" not in group:
+        raise ValueError(f"{path}: bodies/pos is missing")
+    n = group["pos"].shape[0]
+    arrays = {}
+    for name, (tail, dtype) in _body_spec(dim).items():
+        if name not in group:
+            raise ValueError(f"{path}: bodies/{name} is missing")
+        arrays[name] = _checked(path, f"bodies/{name}", group[name], (n, *tail), dtype)
+    return Bodies(dim=dim, **arrays)
+
+
+def _checked(path, name, dataset, shape, dtype):
+    if not isinstance(dataset, h5py.Dataset):
+        raise ValueError(f"{path}: {name} is not a dataset")
+    if dataset.shape != tuple(shape) or dataset.dtype != dtype:
+        raise ValueError(f"{path}: {name} is {dataset.dtype}{dataset.shape}, "
+                         f"expected {dtype}{tuple(shape)}")
+    return np.ascontiguousarray(dataset[()])
+
+
+def _open(path, fmt):
+    """Open an HDF5 file for reading, checking its format tag (ValueError if wrong)."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise FileNotFoundError(path)
+    try:
+        f = h5py.File(path, "r")
+    except OSError as err:
+        raise ValueError(f"{path} is not a {fmt} file (not HDF5: {err})") from None
+    try:
+        tag = f.attrs.get("format")
+        version = f.attrs.get("version")
+    except (OSError, KeyError) as err:
+        f.close()
+        raise ValueError(f"{path} is not a readable {fmt} file ({err})") from None
+    if isinstance(tag, bytes):
+        tag = tag.decode()
+    if tag != fmt:
+        f.close()
+        raise ValueError(f"{path} is not a {fmt} file (format tag {tag!r})")
+    if version != VERSION:
+        f.close()
+        raise ValueError(f"{path}: {fmt} version {version} is not supported "
+                         f"(need {VERSION})")
+    return f
+
+
+def _write_atomic(path, fill):
+    """Write an HDF5 file with ``fill(h5file)`` into ``path.tmp``, then rename it."""
+    path = os.fspath(path)
+    parent = os.path.dirname(os.path.abspath(path))
+    os.makedirs(parent, exist_ok=True)
+    tmp = path + ".tmp"
+    try:
+        with h5py.File(tmp, "w") as f:
+            fill(f)
+        publish(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.remove(tmp)
+    return path
+
+
+# ------------------------------------------------------------------ checkpoint
+def save_checkpoint(sim, path):
+    """Write the full state of ``sim`` to ``path`` (HDF5, atomically).
+
+    An unprimed simulation is primed first (neighbour lists and forces of the current
+    state), exactly as its next :meth:`~dem.Simulation.run` would.
+
+    Parameters
+    ----------
+    sim : Simulation
+    path : str or os.PathLike
+        Written as ``path + ".tmp"`` and renamed into place: an interrupted save never
+        leaves a partial file at ``path``.
+
+    Returns
+    -------
+    str
+        ``path``.
+    """
+    sim.prime()
+    nl = sim.neighbors
+
+    def fill(f):
+        f.attrs["format"] = FORMAT
+        f.attrs["version"] = VERSION
+        f.attrs["dim"] = int(sim.dim)
+        f.attrs["step"] = int(sim.step)
+        f.attrs["time"] = float(sim.time)
+        f.attrs["dt"] = float(sim.dt)
+        f.attrs["damping"] = float(sim.damping)
+        f.attrs["overlap_limit"] = float(sim.overlap_limit)
+        f.attrs["skin"] = float(nl.skin)
+        f.attrs["backend"] = str(nl.backend)
+        f.attrs["n_builds"] = int(nl.n_builds)
+        f.attrs["capacity"] = int(getattr(nl, "_cap", 0))
+        f.attrs["has_box"] = sim.box is not None
+        f.create_dataset("gravity", data=np.asarray(sim.gravity, dtype=np.float64))
+        f.create_dataset("wall_work", data=np.asarray(sim.wall_work, dtype=np.float64))
+        _write_bodies(f.create_group("bodies"), sim.bodies)
+        g = f.create_group("neighbors")
+        for name in ("pairs", "img", "wall_pairs", "pos_ref"):
+            g.create_dataset(name, data=getattr(nl, name))
+        if sim.box is not None:
+            g = f.create_group("box")
+            g.create_dataset("lo", data=np.asarray(sim.box.lo, dtype=np.float64))
+            g.create_dataset("hi", data=np.asarray(sim.box.hi, dtype=np.float64))
+            g.create_dataset("periodic", data=np.asarray(sim.box.periodic, dtype=bool))
+        g = f.create_group("contacts")
+        for name, _, _ in _PAIR_ARRAYS + _WALL_ARRAYS:
+            if hasattr(sim, name):  # "touch" is absent from older cores
+                g.create_dataset(name, data=getattr(sim, name))
+        g.create_dataset("radius_ref", data=sim._radius_ref)
+        g = f.create_group("model")
+        g.create_dataset("params_pp", data=sim._params_pp)
+        g.create_dataset("params_pw", data=sim._params_pw)
+
+    _write_atomic(path, fill)
+    log.info("checkpoint of step %d written to %s", sim.step, path)
+    return os.fspath(path)
+
+
+def load_checkpoint(path, model, observers=(), controllers=(), state_objects=()):
+    """Rebuild the :class:`~dem.Simulation` saved by :func:`save_checkpoint`.
+
+    Running the returned simulation continues the saved run bit for bit (same
+    model, same machine and library build).
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    model : ContactModel or Law
+        The contact model of the saved run (models are code and are not saved).
+    observers, controllers, state_objects : sequences
+        Passed to :class:`~dem.Simulation`.
+
+    Returns
+    -------
+    Simulation
+        Primed: its neighbour lists, contact history and forces are the saved ones.
+
+    Raises
+    ------
+    ValueError
+        If ``path`` is not a checkpoint or an array has the wrong shape or dtype.
+    """
+    path = os.fspath(path)
+    with _open(path, FORMAT) as f:
+        try:
+            state = _read_checkpoint(path, f)
+        except (KeyError, AttributeError, TypeError, OSError) as err:
+            raise ValueError(f"{path}: malformed checkpoint ({err})") from None
+    a = state["attrs"]
+    box = state["box"]
+    sim = Simulation(state["bodies"], model, dt=a["dt"], gravity=state["gravity"],
+                     damping=a["damping"], skin=a["skin"], box=box,
+                     neighbor_backend=a["backend"], overlap_limit=a["overlap_limit"],
+                     observers=observers, controllers=controllers,
+                     state_objects=state_objects, allow_unstable_dt=True)
+    sim.step = a["step"]
+    sim.time = a["time"]
+    sim.wall_work = state["wall_work"]
+    nl = sim.neighbors
+    for name, value in state["neighbors"].items():
+        setattr(nl, name, value)
+    nl.n_builds = a["n_builds"]
+    nl._cap = a["capacity"]
+    for name, value in state["contacts"].items():
+        setattr(sim, name, value)
+    sim._radius_ref = state["radius_ref"]
+    sim._refresh_tables()
+    sim._index()
+    sim._primed = True
+    for name in ("params_pp", "params_pw"):
+        saved, now = state["model"].get(name), getattr(sim, "_" + name)
+        if saved is not None and not (saved.shape == now.shape
+                                      and np.array_equal(saved, now, equal_nan=True)):
+            log.warning("%s: the contact model differs from the saved one (%s); the "
+                        "restart will not repeat the original run", path, name)
+    log.info("restarted from %s at step %d", path, sim.step)
+    return sim
+
+
+def _read_checkpoint(path, f):
+    attrs = {"dim": int(f.attrs["dim"]), "step": int(f.attrs["step"]),
+             "time": float(f.attrs["time"]), "dt": float(f.attrs["dt"]),
+             "damping": float(f.attrs["damping"]),
+             "overlap_limit": float(f.attrs["overlap_limit"]),
+             "skin": float(f.attrs["skin"]), "n_builds": int(f.attrs["n_builds"]),
+             "capacity": int(f.attrs.get("capacity", 0)),
+             "has_box": bool(f.attrs["has_box"])}
+    backend = f.attrs["backend"]
+    attrs["backend"] = backend.decode() if isinstance(backend, bytes) else str(backend)
+    d = attrs["dim"]
+    bodies = _read_bodies(path, f["bodies"])
+    if bodies.dim != d:
+        raise ValueError(f"{path}: bodies are {bodies.dim}D, the checkpoint says {d}D")
+    n = bodies.n
+    gravity = _checked(path, "gravity", f["gravity"], (d,), _F8)
+    wall_work = _checked(path, "wall_work", f["wall_work"], (1,), _F8)
+    g = f["neighbors"]
+    m = g["pairs"].shape[0]
+    mw = g["wall_pairs"].shape[0]
+    neighbors = {"pairs": _checked(path, "neighbors/pairs", g["pairs"], (m, 2), _I4),
+                 "img": _checked(path, "neighbors/img", g["img"], (m, d), _I4),
+                 "wall_pairs": _checked(path, "neighbors/wall_pairs", g["wall_pairs"],
+                                        (mw, 2), _I4),
+                 "pos_ref": _checked(path, "neighbors/pos_ref", g["pos_ref"], (n, d),
+                                     _F8)}
+    for name in ("pairs", "wall_pairs"):
+        p = neighbors[name]
+        if p.size and (p.min() < 0 or p.max() >= n):
+            raise ValueError(f"{path}: neighbors/{name} refers to bodies outside "
+                             f"0..{n - 1}")
+    g = f["contacts"]
+    contacts = {}
+    for rows, spec in ((m, _PAIR_ARRAYS), (mw, _WALL_ARRAYS)):
+        for name, tail, dtype in spec:
+            if name in g:
+                contacts[name] = _checked(path, f"contacts/{name}", g[name],
+                                          (rows, *_trailing(tail, d)), dtype)
+            elif name != "touch":
+                raise ValueError(f"{path}: contacts/{name} is missing")
+    radius_ref = _checked(path, "contacts/radius_ref", g["radius_ref"], (n,), _F8)
+    box = None
+    if attrs["has_box"]:
+        g = f["box"]
+        box = Box(_checked(path, "box/lo", g["lo"], (d,), _F8),
+                  _checked(path, "box/hi", g["hi"], (d,), _F8),
+                  _checked(path, "box/periodic", g["periodic"], (d,), _B))
+    model = {k: v[()] for k, v in f["model"].items()} if "model" in f else {}
+    return {"attrs": attrs, "bodies": bodies, "gravity": gravity,
+            "wall_work": wall_work, "neighbors": neighbors, "contacts": contacts,
+            "radius_ref": radius_ref, "box": box, "model": model}
+
+
+# ------------------------------------------------------------------ failure output
+def write_bodies(bodies, path, **attrs):
+    """Write a :class:`~dem.Bodies` table to ``path`` (HDF5, atomically).
+
+    Extra keyword arguments become file attributes (e.g. ``step=...``).
+    """
+
+    def fill(f):
+        f.attrs["format"] = BODIES_FORMAT
+        f.attrs["version"] = VERSION
+        for k, v in attrs.items():
+            f.attrs[k] = v
+        _write_bodies(f.create_group("bodies"), bodies)
+
+    return _write_atomic(path, fill)
+
+
+def read_bodies(path):
+    """The :class:`~dem.Bodies` table of a file written by :func:`write_bodies`."""
+    path = os.fspath(path)
+    with _open(path, BODIES_FORMAT) as f:
+        if "bodies" not in f:
+            raise ValueError(f"{path}: no bodies group")
+        return _read_bodies(path, f["bodies"])
+
+
+def write_last_good_state(path):
+    """A :meth:`~dem.Simulation.on_failure` hook that saves the last good bodies.
+
+    When a run stops on a physical failure, the hook writes the bodies as they were
+    before the failing chunk of steps (``sim.step`` is then the step of the failure)
+    to ``path``; read them back with :func:`read_bodies`. When no earlier state exists
+    (failure while priming) the current bodies are written, with ``is_last_good``
+    False. A write error is logged, never raised, so that it cannot hide the
+    simulation's own error.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    callable
+        ``hook(sim, last_good_bodies)``.
+    """
+    path = os.fspath(path)
+
+    def hook(sim, last_good_bodies):
+        bodies = sim.bodies if last_good_bodies is None else last_good_bodies
+        try:
+            write_bodies(bodies, path, failed_at_step=int(sim.step),
+                         failed_at_time=float(sim.time), dt=float(sim.dt),
+                         is_last_good=last_good_bodies is not None)
+        except (OSError, ValueError, RuntimeError):
+            log.exception("could not write the last good state to %s", path)
+        else:
+            log.warning("simulation failed at step %d: last good state written to %s",
+                      sim.step, path)
+
+    return hook

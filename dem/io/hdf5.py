@@ -1,0 +1,206 @@
+"""Time series of a simulation in HDF5 (h5py), with an XDMF side file for ParaView.
+
+:class:`H5Writer` is an observer: whenever its trigger fires it appends one frame.
+
+File layout (one group per frame, because the number of contacts changes from frame
+to frame; frame groups are numbered ``000000, 000001, ...`` in the order written)::
+
+    /                       attrs: format = "dem.h5writer", version, dim, n_frames
+    /frames/000000/         attrs: step, time [s], dt [s], dim,
+                                   n_spheres, n_walls, n_contacts
+        id       (n,)    int32    body index of each sphere in ``sim.bodies``
+        pos      (n, d)  float64  [m]
+        vel      (n, d)  float64  [m/s]
+        rot      (n, 4) or (n, 1) float64  quaternion (w, x, y, z) in 3D,
+                                           angle [rad] in 2D
+        ang_vel  (n, 3) or (n, 1) float64  [rad/s]
+        radius   (n,)    float64  [m]
+        force    (n, d)  float64  [N], total force of the last step
+        walls/   id (nw,) int32, pos (nw, d) [m] (a point of the plane), normal (nw, d)
+        contacts/  (only when ``contacts=True``; touching contacts only)
+            i, j     (nc,)   int32  body indices (``j`` is a wall when ``is_wall``)
+            normal   (nc, d) float64 unit normal from i to j
+            overlap  (nc,)   float64 [m], > 0
+            force    (nc, d) float64 force on j [N]
+            x1, x2   (nc, d) float64 [m], points of i and j deepest into the other
+            is_wall  (nc,)   bool
+    /xdmf/zeros  (n_max, 1) float64, 2D files only: the zero third component that
+                 the XDMF file joins to 2D vectors (ParaView draws only 3-vectors)
+
+Crash safety: frames are written to ``path + ".tmp"`` (flushed after every frame) and
+the file is renamed to ``path`` with :func:`os.replace` only by :meth:`H5Writer.close`,
+so a killed run never leaves a truncated file at ``path``; ``path.tmp`` may remain and
+usually holds the frames flushed before the crash.
+"""
+
+import logging
+import os
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+from ..observers import Periodic
+from ..shapes import Shape
+
+log = logging.getLogger(__name__)
+
+FORMAT = "dem.h5writer"
+VERSION = 1
+
+
+def publish(tmp_path, path):
+    """Atomically move a finished file ``tmp_path`` to ``path`` (fsync, then rename)."""
+    with open(tmp_path, "rb+") as fh:
+        os.fsync(fh.fileno())
+    os.replace(tmp_path, path)
+
+
+def frame_name(index):
+    """Group name of frame ``index``: six digits, zero padded.
+
+    >>> frame_name(7)
+    '000007'
+    """
+    return f"{int(index):06d}"
+
+
+class H5Writer:
+    """Observer writing particle frames (and contacts) to an HDF5 file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The HDF5 file; written as ``path + ".tmp"`` until :meth:`close`. The XDMF side
+        file is ``path`` with the suffix ``.xdmf``.
+    every : int or trigger
+        Write a frame every ``every`` steps (or when a trigger with ``next_after``
+        fires). The simulation calls observers after steps only: call the writer
+        once yourself (``writer(sim)``) for a frame of the initial state.
+    contacts : bool
+        Also write the touching contacts of every frame.
+
+    Examples
+    --------
+    >>> import tempfile, dem
+    >>> from dem.io import H5Writer
+    >>> b = dem.Bodies.spheres([[0.0, 0.0], [0.05, 0.0]], radius=0.01, density=2500.0)
+    >>> sim = dem.Simulation(b, dem.LinearSpring(kn=1e4), dt=1e-5)
+    >>> with tempfile.TemporaryDirectory() as tmp:
+    ...     with H5Writer(tmp + "/run.h5", every=10) as out:
+    ...         sim.observers.append(out)
+    ...         sim.run(20)
+    >>> out.n_frames
+    2
+    """
+
+    def __init__(self, path, every=100, contacts=True):
+        self.path = os.fspath(path)
+        self.tmp_path = self.path + ".tmp"
+        self.xdmf_path = os.fspath(Path(self.path).with_suffix(".xdmf"))
+        self.trigger = every if hasattr(every, "next_after") else Periodic(every)
+        self.contacts = bool(contacts)
+        self.n_frames = 0
+        self._dim = None
+        self._n_max = 0
+        parent = os.path.dirname(os.path.abspath(self.path))
+        os.makedirs(parent, exist_ok=True)
+        self._file = h5py.File(self.tmp_path, "w")
+        self._file.attrs["format"] = FORMAT
+        self._file.attrs["version"] = VERSION
+        self._frames = self._file.create_group("frames")
+
+    # ------------------------------------------------------------------ observer
+    def __call__(self, sim):
+        """Append one frame of ``sim`` (step, time, bodies and contacts)."""
+        if self._file is None:
+            raise ValueError(f"H5Writer for {self.path} is closed")
+        b = sim.bodies
+        if self._dim is None:
+            self._dim = int(b.dim)
+            self._file.attrs["dim"] = self._dim
+        elif b.dim != self._dim:
+            raise ValueError(f"frame is {b.dim}D but {self.path} holds "
+                             f"{self._dim}D frames")
+        g = self._frames.create_group(frame_name(self.n_frames))
+        sph = np.flatnonzero(b.kind == Shape.SPHERE)
+        wal = np.flatnonzero(b.kind == Shape.PLANE)
+        g.attrs["step"] = int(sim.step)
+        g.attrs["time"] = float(sim.time)
+        g.attrs["dt"] = float(sim.dt)
+        g.attrs["dim"] = int(b.dim)
+        g.attrs["n_spheres"] = sph.size
+        g.attrs["n_walls"] = wal.size
+        g.create_dataset("id", data=sph.astype(np.int32))
+        for name in ("pos", "vel", "rot", "ang_vel", "radius", "force"):
+            g.create_dataset(name, data=getattr(b, name)[sph])
+        w = g.create_group("walls")
+        w.create_dataset("id", data=wal.astype(np.int32))
+        w.create_dataset("pos", data=b.pos[wal])
+        w.create_dataset("normal", data=b.normal[wal])
+        n_c = 0
+        if self.contacts:
+            n_c = self._write_contacts(g.create_group("contacts"), sim.contacts())
+        g.attrs["n_contacts"] = n_c
+        self._n_max = max(self._n_max, sph.size)
+        self.n_frames += 1
+        self._file.flush()
+
+    @staticmethod
+    def _write_contacts(g, c):
+        g.create_dataset("i", data=np.asarray(c["i"], dtype=np.int32))
+        g.create_dataset("j", data=np.asarray(c["j"], dtype=np.int32))
+        for name in ("normal", "overlap", "force", "x1", "x2"):
+            g.create_dataset(name, data=np.asarray(c[name], dtype=np.float64))
+        g.create_dataset("is_wall", data=np.asarray(c["is_wall"], dtype=bool))
+        return int(np.asarray(c["i"]).size)
+
+    # ------------------------------------------------------------------ closing
+    def close(self):
+        """Finish the file: rename ``path.tmp`` to ``path`` and write the XDMF file.
+
+        Idempotent. Returns the path of the HDF5 file.
+        """
+        if self._file is None:
+            return self.path
+        f, self._file = self._file, None
+        try:
+            f.attrs["n_frames"] = self.n_frames
+            if self._dim == 2 and self._n_max:
+                zeros = np.zeros((self._n_max, 1))
+                f.create_group("xdmf").create_dataset("zeros", data=zeros)
+        finally:
+            f.close()
+        publish(self.tmp_path, self.path)
+        from .xdmf import write_xdmf
+
+        write_xdmf(self.path, self.xdmf_path)
+        log.info("wrote %d frames to %s (+ %s)", self.n_frames, self.path,
+                 self.xdmf_path)
+        return self.path
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, exc_type, exc, tb):
+        self.close()
+        return False
+
+
+def read_frame(path, index):
+    """One frame of an :class:`H5Writer` file as a dict of arrays and scalars.
+
+    Keys: the frame's attributes (``step``, ``time``, ``dt``, ...), its sphere datasets
+    (``pos``, ``vel``, ...), ``walls`` and, when written, ``contacts`` (dicts).
+    """
+    with h5py.File(path, "r") as f:
+        if f.attrs.get("format") != FORMAT:
+            raise ValueError(f"{path} is not a {FORMAT} file")
+        g = f["frames"][frame_name(index)]
+        out = {k: v.item() if hasattr(v, "item") else v for k, v in g.attrs.items()}
+        for k, v in g.items():
+            if isinstance(v, h5py.Group):
+                out[k] = {kk: vv[()] for kk, vv in v.items()}
+            else:
+                out[k] = v[()]
+    return out

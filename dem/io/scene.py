@@ -1,0 +1,732 @@
+"""TOML scene files: a schema written as data, validation, the Simulation they build.
+
+A scene file is parsed with :mod:`tomllib`, checked against :data:`SCHEMA` and turned
+into a :class:`dem.Simulation` by :func:`build_simulation`. Any problem is a
+:class:`SceneError` whose message is one line naming the file and the full key path,
+e.g. ``scene.toml: [particles] radius must be > 0, got -0.01``.
+
+Layout (SI units throughout; ``d`` is ``[simulation] dim``)::
+
+    [simulation]
+    dim = 3                       # 2 or 3
+    steps = 20000                 # required
+    dt = 1e-5                     # [s], optional: default DT_FACTOR x critical step
+    gravity = [0.0, 0.0, -9.81]   # [m/s^2], d components
+    damping = 0.0                 # Cundall local damping in [0, 1)
+    skin = 0.002                  # [m], optional Verlet skin
+    neighbor_backend = "cell"     # or "kdtree"
+    overlap_limit = 0.5           # stop when overlap > this x smaller radius
+
+    [particles]
+    generator = "random"          # required: "lattice" | "random" | "file"
+    count = 300                   # random: required; lattice: optional (fill the box)
+    lo = [0.0, 0.0, 0.0]          # [m] generation box (required: lattice, random)
+    hi = [0.1, 0.1, 0.2]
+    spacing = 0.011               # [m] lattice pitch (default 2.1 x largest radius)
+    radius = [0.004, 0.005]       # [m] required: one value or [min, max] (uniform)
+    density = 2500.0              # [kg/m^3], required
+    seed = 0                      # random positions / polydisperse radii
+    velocity = [0.0, 0.0, 0.0]    # [m/s] initial velocity of every particle
+    file = "packing.txt"          # file: rows "x y z r" (3D) or "x y r" (2D)
+
+    [[walls]]                     # any number; the normal points to the free side
+    point = [0.0, 0.0, 0.0]       # [m], required
+    normal = [0.0, 0.0, 1.0]      # required
+    velocity = [0.0, 0.0, 0.0]    # [m/s], optional
+
+    [contact]
+    law = "linear"                # required: "linear" or "hertz_mindlin"
+    kn = 1e4                      # linear: [N/m], required
+    kt = 5e3                      # linear: [N/m]
+    gamma_n = 0.0                 # linear: [N s/m]
+    gamma_t = 0.0                 # linear: [N s/m]
+    young = 1e7                   # hertz_mindlin: [Pa], required
+    poisson = 0.3                 # hertz_mindlin: in [0, 0.5), required
+    mu = 0.5                      # both laws: friction coefficient, required
+    restitution = 0.5             # both laws: in (0, 1], default 1
+
+    [output]
+    dir = "output/scene"          # relative to the working directory
+    every = 1000                  # steps between frames
+    contacts = true               # also write the contact network
+
+Paths inside the scene (``[particles] file``) are relative to the scene file; the output
+directory is relative to the current working directory and defaults to
+``output/<scene file stem>``. Keys that belong to another generator or law (``file``
+with ``generator = "lattice"``, ``young`` with ``law = "linear"``) are errors, as are
+unknown keys. Walls are listed as ``[[walls]] #1``, ``#2``, ... (1-based) in messages.
+:func:`schema_markdown` renders :data:`SCHEMA` (types, units, defaults, ranges) as a
+reference page.
+"""
+
+import difflib
+import logging
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+__all__ = ["SCHEMA", "Key", "OutputSettings", "Range", "SceneError", "Section",
+           "build_bodies", "build_simulation", "load_scene", "schema_markdown",
+           "validate_scene"]
+
+
+class SceneError(ValueError):
+    """An invalid scene; the message is one line naming the file and the key."""
+
+    def __init__(self, msg):
+        super().__init__(" ".join(str(msg).split()))
+
+
+class _Required:
+    def __repr__(self):
+        return "required"
+
+
+#: marks a key that has no default
+REQUIRED = _Required()
+
+
+@dataclass(frozen=True)
+class Range:
+    """The physical range of a number: ``lo``/``hi`` bounds, closed or open."""
+
+    lo: float = None
+    hi: float = None
+    lo_closed: bool = True
+    hi_closed: bool = True
+
+    def __contains__(self, x):
+        lo, hi = self.lo, self.hi
+        above = lo is None or (x >= lo if self.lo_closed else x > lo)
+        below = hi is None or (x <= hi if self.hi_closed else x < hi)
+        return above and below
+
+    def __str__(self):
+        lo, hi = _fmt(self.lo), _fmt(self.hi)
+        if self.lo is not None and self.hi is not None:
+            left, right = "[(" [not self.lo_closed], "])" [not self.hi_closed]
+            return f"in {left}{lo}, {hi}{right}"
+        if self.lo is not None:
+            return f"{'>=' if self.lo_closed else '>'} {lo}"
+        if self.hi is not None:
+            return f"{'<=' if self.hi_closed else '<'} {hi}"
+        return "any value"
+
+
+@dataclass(frozen=True)
+class Key:
+    """One key of a section.
+
+    ``type`` is one of ``int``, ``float``, ``bool``, ``str``, ``vector`` (``dim``
+    numbers), ``radius`` (a number or ``[min, max]``) and ``path`` (a file name relative
+    to the scene). ``default`` is a value, ``None`` (optional: computed when absent) or
+    :data:`REQUIRED`. ``only`` lists the variants (generators, laws) the key belongs to
+    (empty: all); ``required_for`` the variants for which it is required.
+    """
+
+    type: str
+    unit: str = "-"
+    default: object = None
+    range: Range = None
+    choices: tuple = ()
+    only: tuple = ()
+    required_for: tuple = ()
+    doc: str = ""
+
+
+@dataclass(frozen=True)
+class Section:
+    """A table (``[name]``) or an array of tables (``[[name]]``) of :class:`Key`."""
+
+    keys: dict
+    doc: str = ""
+    required: bool = False
+    array: bool = False
+    variant: str = None  # the key whose value selects which keys apply
+
+
+POSITIVE = Range(0.0, lo_closed=False)
+NONNEGATIVE = Range(0.0)
+UNIT_OPEN_CLOSED = Range(0.0, 1.0, lo_closed=False)
+
+SCHEMA = {
+    "simulation": Section(doc="Time stepping and body forces.", required=True, keys={
+        "dim": Key("int", default=3, choices=(2, 3), doc="Dimension of the scene."),
+        "steps": Key("int", default=REQUIRED, range=NONNEGATIVE,
+                     doc="Number of time steps to run."),
+        "dt": Key("float", "s", range=POSITIVE,
+                  doc="Time step; default DT_FACTOR x the critical time step."),
+        "gravity": Key("vector", "m/s^2", default=0.0,
+                       doc="Gravitational acceleration, dim components."),
+        "damping": Key("float", default=0.0, range=Range(0.0, 1.0, hi_closed=False),
+                       doc="Cundall local damping coefficient."),
+        "skin": Key("float", "m", range=POSITIVE,
+                    doc="Verlet skin; default 0.4 x the mean radius."),
+        "neighbor_backend": Key("str", default="cell", choices=("cell", "kdtree"),
+                                doc="Neighbour search."),
+        "overlap_limit": Key("float", default=0.5, range=POSITIVE,
+                             doc="Stop when an overlap exceeds this x smaller radius."),
+    }),
+    "particles": Section(doc="Spheres (disks in 2D).", required=True,
+                         variant="generator", keys={
+        "generator": Key("str", default=REQUIRED, choices=("lattice", "random", "file"),
+                         doc="How positions are made."),
+        "count": Key("int", range=Range(1.0), only=("lattice", "random"),
+                     required_for=("random",),
+                     doc="Number of particles (lattice: default fills the box)."),
+        "lo": Key("vector", "m", default=REQUIRED, only=("lattice", "random"),
+                  doc="Lower corner of the generation box."),
+        "hi": Key("vector", "m", default=REQUIRED, only=("lattice", "random"),
+                  doc="Upper corner of the generation box."),
+        "spacing": Key("float", "m", range=POSITIVE, only=("lattice",),
+                       doc="Lattice pitch; default 2.1 x the largest radius."),
+        "radius": Key("radius", "m", default=REQUIRED, range=POSITIVE,
+                      only=("lattice", "random"),
+                      doc="Radius, or [min, max] for uniformly distributed radii."),
+        "density": Key("float", "kg/m^3", default=REQUIRED, range=POSITIVE,
+                       doc="Density (per unit thickness in 2D)."),
+        "seed": Key("int", default=0, range=NONNEGATIVE, only=("lattice", "random"),
+                    doc="Seed of the random generator."),
+        "velocity": Key("vector", "m/s", default=0.0, doc="Initial velocity."),
+        "file": Key("path", default=REQUIRED, only=("file",),
+                    doc="Whitespace-separated rows x y [z] r, '#' comments."),
+    }),
+    "walls": Section(doc="Planes; particles live on the side the normal points to.",
+                     array=True, keys={
+        "point": Key("vector", "m", default=REQUIRED, doc="A point of the plane."),
+        "normal": Key("vector", default=REQUIRED, doc="Normal towards the free side."),
+        "velocity": Key("vector", "m/s", default=0.0, doc="Prescribed velocity."),
+    }),
+    "contact": Section(doc="The contact law, for sphere-sphere and sphere-wall pairs.",
+                       required=True, variant="law", keys={
+        "law": Key("str", default=REQUIRED, choices=("linear", "hertz_mindlin"),
+                   doc="Contact law."),
+        "kn": Key("float", "N/m", default=REQUIRED, range=POSITIVE, only=("linear",),
+                  doc="Normal stiffness."),
+        "kt": Key("float", "N/m", default=0.0, range=NONNEGATIVE, only=("linear",),
+                  doc="Tangential stiffness."),
+        "gamma_n": Key("float", "N s/m", default=0.0, range=NONNEGATIVE,
+                       only=("linear",), doc="Normal dashpot coefficient."),
+        "gamma_t": Key("float", "N s/m", default=0.0, range=NONNEGATIVE,
+                       only=("linear",), doc="Tangential dashpot coefficient."),
+        "young": Key("float", "Pa", default=REQUIRED, range=POSITIVE,
+                     only=("hertz_mindlin",), doc="Young's modulus."),
+        "poisson": Key("float", default=REQUIRED, only=("hertz_mindlin",),
+                       range=Range(0.0, 0.5, hi_closed=False), doc="Poisson's ratio."),
+        "mu": Key("float", default=REQUIRED, range=NONNEGATIVE,
+                  doc="Coulomb friction coefficient."),
+        "restitution": Key("float", default=1.0, range=UNIT_OPEN_CLOSED,
+                           doc="Normal coefficient of restitution."),
+    }),
+    "output": Section(doc="HDF5 output written by `dem run`.", keys={
+        "dir": Key("str", doc="Output directory; default output/<scene stem>."),
+        "every": Key("int", default=1000, range=Range(1.0),
+                     doc="Steps between frames."),
+        "contacts": Key("bool", default=True, doc="Also write contacts."),
+    }),
+}
+
+
+@dataclass(frozen=True)
+class OutputSettings:
+    """Where and how often ``dem run`` writes: ``file`` (HDF5) inside ``dir``."""
+
+    dir: Path
+    file: Path
+    every: int
+    contacts: bool
+
+
+# --------------------------------------------------------------------------- loading
+def load_scene(path):
+    """Read, parse and validate a scene file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The TOML scene file.
+
+    Returns
+    -------
+    dict
+        ``{section: {key: value}}`` with defaults filled (``walls`` a list of such
+        dicts), ``particles.file`` resolved against the scene's directory, and
+        ``"source"``: the path as given, used in later messages.
+
+    Raises
+    ------
+    SceneError
+        Unreadable file, invalid TOML or a value outside the schema.
+    """
+    path = Path(path)
+    try:
+        text = path.read_bytes().decode("utf-8")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SceneError(f"{path}: cannot read scene file: {_reason(exc)}") from None
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: invalid TOML: {exc}") from None
+    return validate_scene(data, source=str(path), base_dir=path.parent)
+
+
+def validate_scene(data, source="<scene>", base_dir="."):
+    """Check parsed ``data`` against :data:`SCHEMA`; returns as :func:`load_scene`.
+
+    Examples
+    --------
+    >>> s = validate_scene({"simulation": {"steps": 10},
+    ...                     "particles": {"generator": "lattice", "lo": [0, 0, 0],
+    ...                                   "hi": [1, 1, 1], "radius": 0.1, "density": 1},
+    ...                     "contact": {"law": "linear", "kn": 1e3, "mu": 0.3}})
+    >>> s["simulation"]["gravity"], s["contact"]["restitution"]
+    ([0.0, 0.0, 0.0], 1.0)
+    >>> validate_scene({"simulation": {"steps": -1}})
+    Traceback (most recent call last):
+    ...
+    dem.io.scene.SceneError: <scene>: [simulation] steps must be >= 0, got -1
+    """
+    ctx = _Context(source, Path(base_dir))
+    if not isinstance(data, dict):
+        raise SceneError(f"{source}: a scene must be a TOML table")
+    for name in data:
+        if name not in SCHEMA:
+            what = "section" if isinstance(data[name], (dict, list)) else "key"
+            shown = f"[{name}]" if what == "section" else f"'{name}'"
+            ctx.fail(f"unknown {what} {shown}{_suggest(name, SCHEMA)}")
+    sim = data.get("simulation")
+    if isinstance(sim, dict) and "dim" in sim:  # vectors everywhere need dim first
+        spec = SCHEMA["simulation"].keys["dim"]
+        ctx.dim = _check_value(ctx, "[simulation]", "dim", spec, sim["dim"])
+    out = {}
+    for name, section in SCHEMA.items():
+        raw = data.get(name)
+        if section.array:
+            out[name] = _validate_array(ctx, name, section, raw)
+        else:
+            if raw is None:
+                if section.required:
+                    ctx.fail(f"missing required section [{name}]")
+                raw = {}
+            out[name] = _validate_table(ctx, f"[{name}]", section, raw)
+    _cross_checks(ctx, out)
+    out["source"] = source
+    return out
+
+
+class _Context:
+    def __init__(self, source, base_dir):
+        self.source, self.base_dir, self.dim = source, base_dir, 3
+
+    def fail(self, msg, where=None):
+        prefix = f"{self.source}: " + (f"{where} " if where else "")
+        raise SceneError(prefix + msg)
+
+
+def _validate_array(ctx, name, section, raw):
+    if raw is None:
+        return []
+    if isinstance(raw, dict):
+        ctx.fail(f"[{name}] must be an array of tables: write [[{name}]]")
+    if not isinstance(raw, list):
+        ctx.fail(f"{name} must be an array of tables ([[{name}]]), got {_tname(raw)}")
+    return [_validate_table(ctx, f"[[{name}]] #{i + 1}", section, item)
+            for i, item in enumerate(raw)]
+
+
+def _validate_table(ctx, where, section, raw):
+    if not isinstance(raw, dict):
+        ctx.fail(f"must be a table, got {_tname(raw)}", where)
+    for key in raw:
+        if key not in section.keys:
+            ctx.fail(f"unknown key '{key}'{_suggest(key, section.keys)}", where)
+    variant = None
+    if section.variant is not None:
+        name = section.variant
+        variant = _check_value(ctx, where, name, section.keys[name],
+                               raw.get(name, REQUIRED))
+    out = {}
+    for key, spec in section.keys.items():
+        if spec.only and variant not in spec.only:
+            if key in raw:
+                ctx.fail(f"{key} is not used with {section.variant} = \"{variant}\" "
+                         f"(only with {_alternatives(spec.only)})", where)
+            continue
+        if key in raw:
+            value = raw[key]
+        elif variant in spec.required_for:
+            value = REQUIRED
+        elif spec.type == "vector" and isinstance(spec.default, float):
+            value = [spec.default] * ctx.dim  # a scalar default fills every component
+        else:
+            value = spec.default
+        out[key] = _check_value(ctx, where, key, spec, value)
+    return out
+
+
+def _check_value(ctx, where, key, spec, value):
+    if value is REQUIRED:
+        ctx.fail(f"missing required key '{key}' ({_describe(spec)})", where)
+    if value is None:
+        return None
+    t = spec.type
+    if t == "vector":
+        if not isinstance(value, list) or len(value) != ctx.dim:
+            ctx.fail(f"{key} must be an array of {ctx.dim} numbers (dim = {ctx.dim}), "
+                     f"got {_show(value)}", where)
+        return [_number(ctx, where, f"{key}[{i}]", spec, v)
+                for i, v in enumerate(value)]
+    if t == "radius":
+        if isinstance(value, list):
+            if len(value) != 2:
+                ctx.fail(f"{key} must be a number or [min, max], got {_show(value)}",
+                         where)
+            lo, hi = (_number(ctx, where, f"{key}[{i}]", spec, v)
+                      for i, v in enumerate(value))
+            if lo > hi:
+                ctx.fail(f"{key} = [min, max] needs min <= max, got {_show(value)}",
+                         where)
+            return [lo, hi]
+        return _number(ctx, where, key, spec, value, "a number or [min, max]")
+    if t in ("int", "float"):
+        v = _number(ctx, where, key, spec, value)
+    elif t == "bool":
+        if not isinstance(value, bool):
+            ctx.fail(f"{key} must be true or false, got {_show(value)}", where)
+        v = value
+    elif t in ("str", "path"):
+        if not isinstance(value, str) or not value:
+            ctx.fail(f"{key} must be a non-empty string, got {_show(value)}", where)
+        v = value
+        if t == "path":
+            v = str(ctx.base_dir / value)
+    else:  # pragma: no cover - schema bug
+        raise TypeError(f"unknown schema type {t!r}")
+    if spec.choices and v not in spec.choices:
+        ctx.fail(f"{key} must be {_alternatives(spec.choices)}, got {_show(value)}",
+                 where)
+    return v
+
+
+def _number(ctx, where, key, spec, value, expected=None):
+    is_int = spec.type == "int"
+    expected = expected or ("an integer" if is_int else "a number")
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        ctx.fail(f"{key} must be {expected}, got {_show(value)}", where)
+    if isinstance(value, float) and not math.isfinite(value):
+        ctx.fail(f"{key} must be finite, got {value}", where)
+    if is_int and value != int(value):
+        ctx.fail(f"{key} must be {expected}, got {value}", where)
+    try:
+        value = int(value) if is_int else float(value)
+    except OverflowError:
+        ctx.fail(f"{key} is out of range, got {value}", where)
+    if spec.range is not None and value not in spec.range:
+        ctx.fail(f"{key} must be {spec.range}, got {_fmt(value)}", where)
+    return value
+
+
+def _cross_checks(ctx, scene):
+    p = scene["particles"]
+    if p["generator"] in ("lattice", "random"):
+        for a, (lo, hi) in enumerate(zip(p["lo"], p["hi"])):
+            if not lo < hi:
+                ctx.fail(f"needs lo < hi on every axis, got lo[{a}] = {_fmt(lo)}, "
+                         f"hi[{a}] = {_fmt(hi)}", "[particles]")
+    for i, w in enumerate(scene["walls"]):
+        if not any(w["normal"]):
+            ctx.fail("normal must be a non-zero vector", f"[[walls]] #{i + 1}")
+
+
+# --------------------------------------------------------------------------- building
+def build_bodies(scene):
+    """The :class:`dem.Bodies` of a validated scene: particles, then walls.
+
+    Raises :class:`SceneError` for a box too small for the requested particles, a
+    particle file that cannot be read or whose spheres overlap (naming the first pair),
+    and a particle that overlaps a wall.
+    """
+    from ..state import Bodies
+
+    ctx = _Context(scene.get("source", "<scene>"), Path("."))
+    ctx.dim = scene["simulation"]["dim"]
+    p = scene["particles"]
+    gen = p["generator"]
+    if gen == "file":
+        pos, radius = _read_particle_file(ctx, p["file"])
+    else:
+        rng = np.random.default_rng(p["seed"])
+        lo, hi = np.array(p["lo"]), np.array(p["hi"])
+        n = p["count"]
+        r = p["radius"]
+        if gen == "lattice":
+            pos, radius = _lattice(ctx, lo, hi, r, p["spacing"], n, rng)
+        else:
+            radius = _radii(r, n, rng)
+            pos = _random_packing(ctx, lo, hi, radius, rng)
+    bodies = Bodies.spheres(pos, radius=radius, density=p["density"], vel=p["velocity"])
+    for i, w in enumerate(scene["walls"]):
+        point, normal = np.array(w["point"]), np.array(w["normal"])
+        normal = normal / np.linalg.norm(normal)
+        gap = (pos - point) @ normal - radius
+        k = int(np.argmin(gap)) if len(gap) else 0
+        if len(gap) and gap[k] < -1e-9 * radius[k]:
+            ctx.fail(f"particle {k} at {_show(pos[k].tolist())} overlaps the wall by "
+                     f"{_fmt(-gap[k])} m (is the normal pointing to the free side?)",
+                     f"[[walls]] #{i + 1}")
+        bodies.add_plane(point, normal, velocity=w["velocity"])
+    return bodies
+
+
+def build_simulation(scene):
+    """Build the :class:`dem.Simulation` of a validated scene (from :func:`load_scene`).
+
+    Returns
+    -------
+    sim : Simulation
+        Bodies, contact law, time step and forces of the scene; not yet run.
+    output : OutputSettings
+        The ``[output]`` section with the directory and HDF5 file resolved.
+    """
+    from ..contact.laws import HertzMindlin, LinearSpring
+    from ..simulation import Simulation, critical_time_step
+
+    ctx = _Context(scene.get("source", "<scene>"), Path("."))
+    bodies = build_bodies(scene)
+    c = scene["contact"]
+    try:
+        if c["law"] == "linear":
+            law = LinearSpring(kn=c["kn"], kt=c["kt"], mu=c["mu"], gamma_n=c["gamma_n"],
+                               gamma_t=c["gamma_t"], restitution=c["restitution"])
+        else:
+            law = HertzMindlin(young=c["young"], poisson=c["poisson"],
+                               restitution=c["restitution"], mu=c["mu"])
+    except ValueError as exc:
+        ctx.fail(str(exc), "[contact]")
+    s = scene["simulation"]
+    if s["dt"] is not None:
+        from ..contact.model import ContactModel
+
+        dt_crit = critical_time_step(bodies, ContactModel(law))[0]
+        if s["dt"] > dt_crit:
+            ctx.fail(f"dt = {_fmt(s['dt'])} s exceeds the critical time step "
+                     f"{dt_crit:.4g} s of these particles and [contact] law",
+                     "[simulation]")
+    try:
+        sim = Simulation(bodies, law, dt=s["dt"], gravity=s["gravity"],
+                         damping=s["damping"], skin=s["skin"],
+                         neighbor_backend=s["neighbor_backend"],
+                         overlap_limit=s["overlap_limit"])
+    except ValueError as exc:
+        ctx.fail(str(exc), "[simulation]")
+    o = scene["output"]
+    stem = Path(ctx.source).stem.strip("<>") or "scene"
+    out_dir = Path(o["dir"] if o["dir"] is not None else Path("output") / stem)
+    output = OutputSettings(dir=out_dir, file=out_dir / f"{stem}.h5", every=o["every"],
+                            contacts=o["contacts"])
+    log.info("scene %s: %d bodies, dt = %.4g s", ctx.source, bodies.n, sim.dt)
+    return sim, output
+
+
+def _radii(r, n, rng):
+    if isinstance(r, list):
+        return rng.uniform(r[0], r[1], n)
+    return np.full(n, float(r))
+
+
+def _lattice(ctx, lo, hi, r, spacing, count, rng):
+    r_max = max(r) if isinstance(r, list) else r
+    if spacing is None:
+        spacing = 2.1 * r_max
+    elif spacing < 2.0 * r_max:
+        ctx.fail(f"spacing must be >= 2 x the largest radius ({_fmt(2 * r_max)} m), "
+                 f"got {_fmt(spacing)}", "[particles]")
+    n_axis = np.floor((hi - lo - 2.0 * r_max) / spacing * (1 + 1e-12)).astype(int) + 1
+    if np.any(n_axis < 1):
+        ctx.fail(f"box lo..hi is too small for one particle of radius {_fmt(r_max)} m",
+                 "[particles]")
+    sites = int(np.prod(n_axis))
+    if count is None:
+        if sites > 10**7:
+            ctx.fail(f"the box holds {sites} lattice sites; set count", "[particles]")
+        count = sites
+    elif count > sites:
+        ctx.fail(f"count = {count} exceeds the {sites} lattice sites in the box "
+                 f"({' x '.join(map(str, n_axis))} at spacing {_fmt(spacing)} m)",
+                 "[particles]")
+    # x varies fastest, the last axis slowest: layers fill from lo upwards
+    idx = np.stack(np.unravel_index(np.arange(count), n_axis[::-1])[::-1], axis=1)
+    return lo + r_max + spacing * idx, _radii(r, count, rng)
+
+
+def _random_packing(ctx, lo, hi, radius, rng, attempts_per_particle=200):
+    """Random sequential addition of non-overlapping spheres, largest first."""
+    n, d = radius.shape[0], lo.shape[0]
+    order = np.argsort(-radius, kind="stable")
+    radius = radius[order]
+    cell = 2.0 * radius[0]
+    pos = np.empty((n, d))
+    grid = {}
+    offsets = [tuple(o) for o in np.ndindex(*(3,) * d)]
+    budget = attempts_per_particle * n + 1000
+    placed = 0
+    while placed < n:
+        r = radius[placed]
+        if np.any(hi - lo < 2.0 * r):
+            ctx.fail(f"box lo..hi is too small for one particle of radius {_fmt(r)} m",
+                     "[particles]")
+        batch = rng.uniform(lo + r, hi - r, (64, d))
+        for x in batch:
+            budget -= 1
+            c = tuple(int(v) for v in np.floor(x / cell))
+            near = [j for o in offsets
+                    for j in grid.get(tuple(a + b - 1 for a, b in zip(c, o)), ())]
+            if near:
+                dist = np.linalg.norm(pos[near] - x, axis=1)
+                if np.any(dist < radius[near] + r):
+                    continue
+            pos[placed] = x
+            grid.setdefault(c, []).append(placed)
+            placed += 1
+            break
+        if budget <= 0 and placed < n:
+            ctx.fail(f"could place only {placed} of count = {n} non-overlapping "
+                     f"particles in the box; enlarge lo..hi or lower count",
+                     "[particles]")
+    out = np.empty_like(pos)
+    out[order] = pos
+    return out
+
+
+def _read_particle_file(ctx, path):
+    where = "[particles]"
+    try:
+        with open(path, encoding="utf-8") as f:
+            rows = np.loadtxt(f, ndmin=2, comments="#")
+    except OSError as exc:
+        ctx.fail(f"file: cannot read {path}: {_reason(exc)}", where)
+    except ValueError as exc:
+        ctx.fail(f"file: {path}: {_reason(exc)}", where)
+    ncol = ctx.dim + 1
+    if rows.shape[0] == 0:
+        ctx.fail(f"file: {path} holds no particles", where)
+    if rows.shape[1] != ncol:
+        names = "x y z r" if ctx.dim == 3 else "x y r"
+        ctx.fail(f"file: {path} must have {ncol} columns ({names}) for "
+                 f"dim = {ctx.dim}, got {rows.shape[1]}", where)
+    bad = ~np.all(np.isfinite(rows), axis=1) | (rows[:, -1] <= 0.0)
+    if bad.any():
+        k = int(np.argmax(bad))
+        ctx.fail(f"file: {path}: particle {k} needs finite values and radius > 0, "
+                 f"got {_show(rows[k].tolist())}", where)
+    pos, radius = np.ascontiguousarray(rows[:, :-1]), np.ascontiguousarray(rows[:, -1])
+    pair = _first_overlap(pos, radius)
+    if pair is not None:
+        i, j, ov = pair
+        ctx.fail(f"file: {path}: particles {i} and {j} (0-based rows) overlap by "
+                 f"{_fmt(ov)} m", where)
+    return pos, radius
+
+
+def _first_overlap(pos, radius):
+    """The overlapping pair (i, j, overlap [m]) with the smallest (i, j), or None."""
+    from scipy.spatial import cKDTree
+
+    if pos.shape[0] < 2:
+        return None
+    pairs = cKDTree(pos).query_pairs(2.0 * float(radius.max()), output_type="ndarray")
+    if pairs.shape[0] == 0:
+        return None
+    i, j = pairs.min(axis=1), pairs.max(axis=1)
+    ov = radius[i] + radius[j] - np.linalg.norm(pos[i] - pos[j], axis=1)
+    hit = ov > 1e-12 * np.minimum(radius[i], radius[j])
+    if not hit.any():
+        return None
+    i, j, ov = i[hit], j[hit], ov[hit]
+    k = np.lexsort((j, i))[0]
+    return int(i[k]), int(j[k]), float(ov[k])
+
+
+# --------------------------------------------------------------------------- text
+def _fmt(x):
+    return "" if x is None else f"{x:g}" if isinstance(x, float) else str(x)
+
+
+def _show(value):
+    if isinstance(value, str):
+        return f'"{value}" (string)'
+    if isinstance(value, bool):
+        return f"{str(value).lower()} (boolean)"
+    if isinstance(value, dict):
+        return "a table"
+    if isinstance(value, list):
+        return "[" + ", ".join(_show(v).split(" (")[0] for v in value) + "]"
+    if isinstance(value, (int, float)):
+        return _fmt(value)
+    return f"{value} ({_tname(value)})"
+
+
+def _tname(value):
+    names = {bool: "boolean", int: "integer", float: "float", str: "string",
+             list: "array", dict: "table"}
+    return names.get(type(value), type(value).__name__)
+
+
+def _toml(value):
+    if isinstance(value, str):
+        return f'"{value}"'
+    return str(value).lower() if isinstance(value, bool) else str(value)
+
+
+def _alternatives(options):
+    q = [_toml(o) for o in options]
+    return q[0] if len(q) == 1 else ", ".join(q[:-1]) + " or " + q[-1]
+
+
+def _suggest(name, known):
+    close = difflib.get_close_matches(name, list(known), n=1)
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def _reason(exc):
+    return getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
+
+
+def _describe(spec):
+    kind = {"vector": "array of dim numbers", "radius": "number or [min, max]",
+            "path": "file name", "str": "string", "int": "integer", "float": "number",
+            "bool": "boolean"}[spec.type]
+    return kind + (f", {spec.unit}" if spec.unit != "-" else "")
+
+
+def schema_markdown():
+    """The scene schema as a Markdown reference (one table per section).
+
+    >>> print(schema_markdown().splitlines()[0])
+    ## [simulation]
+    """
+    lines = []
+    for name, sec in SCHEMA.items():
+        head = f"[[{name}]]" if sec.array else f"[{name}]"
+        doc = sec.doc + (" Required." if sec.required else "")
+        lines += [f"## {head}", "", doc, "",
+                  "| key | type | unit | default | range | applies to | description |",
+                  "|---|---|---|---|---|---|---|"]
+        for key, k in sec.keys.items():
+            default = "required" if k.default is REQUIRED else (
+                "computed" if k.default is None else _toml(k.default))
+            if k.required_for:
+                alts = _alternatives(k.required_for)
+                default = f"required for {alts}, else {default}"
+            rng = (_alternatives(k.choices) if k.choices
+                   else str(k.range) if k.range else "")
+            only = _alternatives(k.only) if k.only else "all"
+            cells = (f"`{key}`", k.type, k.unit, default, rng, only, k.doc)
+            lines.append("| " + " | ".join(cells) + " |")
+        lines.append("")
+    return "\n".join(lines)

@@ -188,7 +188,7 @@ class H5Writer:
 
 
 def read_frame(path, index):
-    """One frame of an :class:`H5Writer` file as a dict of arrays and scalars.
+    """One frame (``index`` 0, 1, ...; negative counts from the end) as a dict.
 
     Keys: the frame's attributes (``step``, ``time``, ``dt``, ...), its sphere datasets
     (``pos``, ``vel``, ...), ``walls`` and, when written, ``contacts`` (dicts).
@@ -196,7 +196,12 @@ def read_frame(path, index):
     with h5py.File(path, "r") as f:
         if f.attrs.get("format") != FORMAT:
             raise ValueError(f"{path} is not a {FORMAT} file")
-        g = f["frames"][frame_name(index)]
+        frames = f["frames"]
+        if index < 0:  # count from the end, like a list
+            index += len(frames)
+        if not 0 <= index < len(frames):
+            raise IndexError(f"{path} has {len(frames)} frames, no frame {index}")
+        g = frames[frame_name(index)]
         out = {k: v.item() if hasattr(v, "item") else v for k, v in g.attrs.items()}
         for k, v in g.items():
             if isinstance(v, h5py.Group):

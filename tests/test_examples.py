@@ -1,0 +1,98 @@
+"""The examples are physics regression tests: each one's docstring states its claims.
+
+Each example runs at its default (small) size through ``runpy`` (its ``__main__`` block
+is skipped); the assertions are on physics, with tolerances explained where they are
+not round-off. The session fixture in ``conftest.py`` runs them on one numba thread.
+"""
+
+import runpy
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def run_example(name):
+    """Execute examples/<name>.py without its __main__ block; return its globals."""
+    return runpy.run_path(str(EXAMPLES / f"{name}.py"), run_name="example")
+
+
+@pytest.fixture(scope="module")
+def ex01():
+    return run_example("ex01_dilating_disk")
+
+
+@pytest.fixture(scope="module")
+def ex02():
+    return run_example("ex02_uniaxial_compression")
+
+
+# ------------------------------------------------------------------ ex01: dilating disk
+def test_ex01_radius_grows_linearly(ex01):
+    # dR/dt = const: Heun's RK2 is exact, so only round-off separates R(t) from R0 + t
+    np.testing.assert_allclose(ex01["radius_mid"], ex01["radius_theory"], rtol=1e-12)
+    assert ex01["growth"] > 0.2 * ex01["R0"]  # the run is long enough to matter
+
+
+def test_ex01_first_neighbours_pushed_radially_and_equally(ex01):
+    u_r, u_norm = ex01["u_radial_first"], ex01["u_norm_first"]
+    np.testing.assert_allclose(u_r, u_norm, rtol=1e-9)  # purely radial
+    np.testing.assert_allclose(u_r, u_r.mean(), rtol=1e-9)  # all six alike
+    # contacts stay shallow (elastic, not overrun), so each neighbour got at least as
+    # far out as the centre disk's surface, less that shallow overlap
+    shallow = 0.05 * ex01["R0"]
+    assert np.all(ex01["overlap_first"] < shallow)
+    assert np.all(u_r > ex01["growth"] - shallow)
+
+
+def test_ex01_displacement_field_is_sixfold_symmetric(ex01):
+    outward = ex01["outward"]
+    assert np.all(np.delete(outward, ex01["MID"]) > 0.0)  # everyone moves away
+    assert ex01["symmetry_error"] < 1e-9  # round-off only, relative to max |u|
+
+
+def test_ex01_momentum_stays_zero(ex01):
+    # no wall, no gravity, no damping: contact forces cancel in pairs
+    assert ex01["momentum_scale"] > 0.0
+    assert np.abs(ex01["momentum"]).max() < 1e-12 * ex01["momentum_scale"]
+
+
+# ------------------------------------------------------------------ ex02: compression
+def test_ex02_axial_stress_compressive_and_growing(ex02):
+    szz, loaded = ex02["sigma_zz"], ex02["loaded"]
+    assert np.all(szz < 0.0)  # tension positive: the packing is squeezed from the start
+    assert loaded.sum() > 10
+    assert np.all(np.diff(szz[loaded]) < 0.0)  # |sigma_zz| grows with the strain
+    assert ex02["strain"][-1] == pytest.approx(ex02["STRAIN_END"], rel=0.05)
+
+
+def test_ex02_contact_stress_matches_lid_force(ex02):
+    # box equilibrium: sum_c f (x) arm over all spheres reduces to the wall contacts,
+    # so sigma_zz V = -F_lid h; contact points sit half an overlap beyond the wall,
+    # which adds overlap / height (about 1 %) here
+    szz, lid = ex02["sigma_zz"][-1], ex02["sigma_zz_lid"][-1]
+    floor = ex02["sigma_zz_floor"][-1]
+    assert szz == pytest.approx(lid, rel=0.03)
+    assert floor == pytest.approx(lid, rel=0.01)  # smooth side walls carry no load
+
+
+def test_ex02_lateral_stresses_match_side_walls(ex02):
+    sxx, syy, szz = ex02["sigma_xx"][-1], ex02["sigma_yy"][-1], ex02["sigma_zz"][-1]
+    assert sxx < 0.0 and syy < 0.0
+    assert max(abs(sxx), abs(syy)) < abs(szz)
+    # the same equilibrium argument as for the lid, on the side walls
+    assert ex02["sigma_xx_walls"][-1] == pytest.approx(sxx, rel=0.03)
+    assert ex02["sigma_yy_walls"][-1] == pytest.approx(syy, rel=0.03)
+
+
+def test_ex02_bulk_is_transversely_isotropic(ex02):
+    # hexagonal layers, laterally periodic: sigma_xx == sigma_yy and no shear, to
+    # round-off, at every record
+    s = ex02["bulk_stress"]
+    scale = np.abs(s).max()
+    assert s[-1, 2, 2] < s[-1, 0, 0] < 0.0  # compressive, axial the larger
+    np.testing.assert_allclose(s[:, 0, 0], s[:, 1, 1], rtol=0.0, atol=1e-9 * scale)
+    for a, b in ((0, 1), (0, 2), (1, 2)):
+        np.testing.assert_allclose(s[:, a, b], 0.0, atol=1e-9 * scale)

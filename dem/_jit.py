@@ -16,9 +16,15 @@ if "NUMBA_THREADING_LAYER" not in os.environ:
     numba.config.THREADING_LAYER = "omp"
 
 
-def kernel(fn=None, *, parallel=False):
-    """``numba.njit`` with project defaults; ``parallel=True`` only where a prange exists."""
-    deco = numba.njit(cache=CACHE, parallel=parallel, fastmath=False, error_model="numpy")
+def kernel(fn=None, *, parallel=False, inline=False):
+    """``numba.njit`` with project defaults; ``parallel=True`` only where a prange exists.
+
+    ``inline=True`` inlines the function into its callers at numba's IR level: for the
+    small per-contact kernels (laws) called from hot loops, where a real call would pass
+    every array as a dozen scalar arguments.
+    """
+    deco = numba.njit(cache=CACHE, parallel=parallel, fastmath=False, error_model="numpy",
+                      inline="always" if inline else "never")
     return deco if fn is None else deco(fn)
 
 

@@ -176,6 +176,7 @@ def stress_and_tangent(sim, volume, ids=None, kinetic=True):
     Tangent (eq 29): ``C = 1/V sum_c [kn (n (x) l (x) n (x) l) + kt ((I - n n) (x) l (x) l)]``
     with index order ``C_ijkl = kn n_i l_j n_k l_l + kt (delta_ik - n_i n_k) l_j l_l``.
     """
+    sim.prime()
     b = sim.bodies
     c = contact_summary(sim)
     inside = np.ones(b.n, bool) if ids is None else np.isin(np.arange(b.n), ids)

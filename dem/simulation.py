@@ -8,7 +8,7 @@ import numpy as np
 
 from .contact.loops import NONFINITE, OK, OVERLAP, REBUILD, stepper
 from .contact.model import ContactModel
-from .neighbors import Box, NeighborList, carry_history, incidence
+from .neighbors import Box, NeighborList, carry_history, incidence, incidence_merged
 from .shapes import Shape
 
 log = logging.getLogger(__name__)
@@ -124,7 +124,8 @@ class Simulation:
         self.time = 0.0
         self.wall_work = np.zeros(1)
         self._status = np.zeros(4, np.int64)
-        self._kernel = stepper(self.dim, model.kind("pp").code, model.kind("pw").code)
+        self._kernel = stepper(self.dim, model.kind("pp").code, model.kind("pw").code,
+                               periodic=box is not None and bool(np.any(box.periodic)))
         self._primed = False
         self._failure_hooks = []
 
@@ -164,23 +165,20 @@ class Simulation:
 
     def _index(self):
         n, nl = self.bodies.n, self.neighbors
-        self._pstart = np.zeros(n + 1, np.int64)
-        self._jstart = np.zeros(n + 1, np.int64)
+        self._inc_start = np.zeros(n + 1, np.int64)
+        self._inc = np.zeros(2 * nl.pairs.shape[0], np.int64)
         self._wstart = np.zeros(n + 1, np.int64)
-        self._jlist = np.zeros(nl.pairs.shape[0], np.int64)
-        scratch = np.zeros(nl.pairs.shape[0], np.int64)
-        incidence(nl.pairs, n, 0, self._pstart, scratch)
-        incidence(nl.pairs, n, 1, self._jstart, self._jlist)
+        incidence_merged(nl.pairs, n, self._inc_start, self._inc)
         incidence(nl.wall_pairs, n, 0, self._wstart, np.zeros(nl.wall_pairs.shape[0], np.int64))
 
     def _call(self, n_steps, prime, resume=False):
         b, nl = self.bodies, self.neighbors
         return self._kernel(
-            n_steps, prime, resume, self.dt, self.gravity, self.damping, nl.skin,
+            n_steps, prime, resume, numba.get_num_threads() == 1, self.dt, self.gravity, self.damping, nl.skin,
             self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel, b.force, b.torque, b.radius,
             b.mass, self._inv_mass, self._inv_inertia, self._fixed, b.normal, b.mat_id,
-            nl.pos_ref, self._hmat, nl.pairs, nl.img, self.touch, self.hist, self.fpair,
-            self.tpi, self.tpj, self._pstart, self._jstart, self._jlist, self._params_pp,
+            nl.pos_ref, self._grow(), self._hmat, nl.pairs, nl.img, self.touch, self.hist,
+            self.fpair, self.tpi, self.tpj, self._inc_start, self._inc, self._params_pp,
             nl.wall_pairs, self.whist, self.wforce, self.wtorque, self._wstart,
             self._params_pw, self._status, self.wall_work)
 
@@ -275,7 +273,10 @@ class Simulation:
                    f"smaller radius at step {self.step}: dt = {self.dt:.4g} s may be too "
                    f"large or the bodies too fast (critical step {self.dt_crit:.4g} s)")
         elif code == NONFINITE:
-            msg = f"non-finite force on body {i} at step {self.step}"
+            where = f" on body {i}" if i >= 0 else ""
+            msg = (f"non-finite position, velocity or force{where} at step {self.step + 1}: "
+                   f"the run blew up (dt = {self.dt:.4g} s, critical step "
+                   f"{self.dt_crit:.4g} s)")
         else:
             msg = f"kernel status {code} at step {self.step}"
         for hook in self._failure_hooks:
@@ -289,13 +290,19 @@ class Simulation:
     def _snapshot_bodies(self):
         return self.bodies.copy() if self._failure_hooks else None
 
+    def _grow(self):
+        """Largest radius growth [m] since the neighbour build (state objects)."""
+        if not self.state_objects or self.bodies.n == 0:
+            return 0.0
+        return max(0.0, float(np.max(self.bodies.radius - self._radius_ref)))
+
     def _advance_state_objects(self):
         for so in self.state_objects:
             so.advance(self, self.time - self.dt, self.dt)
-        b = self.bodies
         self._refresh_tables()
-        grow = np.max(b.radius - self._radius_ref) if b.n else 0.0
-        if grow > 0.25 * self.neighbors.skin:
+        # the list holds while 2 (displacement + growth) < skin; the kernel checks both
+        # after each drift, this catches growth alone
+        if 2.0 * self._grow() > 0.5 * self.neighbors.skin:
             self._rebuild()
 
     # ------------------------------------------------------------------ contact data

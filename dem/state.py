@@ -119,6 +119,8 @@ class Bodies:
             rot[:, 0] = 1.0
         v = np.zeros((n, d)) if vel is None else np.broadcast_to(
             np.asarray(vel, dtype=np.float64), (n, d)).copy()
+        if not np.all(np.isfinite(v)):
+            raise ValueError("vel must be finite")
         return self._append(pos=pos, vel=v, rot=rot, radius=radius, mass=mass,
                             inertia=inertia, kind=Shape.SPHERE, mat_id=mat_id,
                             is_fixed=False, normal=np.zeros((n, d)), density=density)
@@ -135,6 +137,8 @@ class Bodies:
             raise ValueError(f"a wall in a {self.dim}D scene needs {self.dim}D point and normal")
         v = np.zeros((1, self.dim)) if velocity is None else np.asarray(
             velocity, dtype=np.float64).reshape(1, self.dim)
+        if not np.all(np.isfinite(point)) or not np.all(np.isfinite(v)):
+            raise ValueError("wall point and velocity must be finite")
         rot = np.zeros((1, 4 if self.dim == 3 else 1))
         if self.dim == 3:
             rot[:, 0] = 1.0

@@ -29,7 +29,7 @@ N_HIST = 3  # tangential spring vector
 
 
 # --------------------------------------------------------------------------- linear
-@kernel
+@kernel(inline=True)
 def law_linear(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt):
     """Linear spring-dashpot normal force, tangential history spring, Coulomb cap.
 
@@ -74,7 +74,7 @@ def energy_linear(ov, r_eff, p, hist, k):
 
 
 # --------------------------------------------------------------------------- Hertz-Mindlin
-@kernel
+@kernel(inline=True)
 def law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt):
     """Hertz normal force, Mindlin (no-slip) tangential stiffness, restitution damping.
 

@@ -277,10 +277,6 @@ def test_last_good_state_is_written_on_failure(tmp_path):
         assert f.attrs["failed_at_step"] == sim.step and f.attrs["is_last_good"]
 
 
-@pytest.mark.xfail(reason="core: after a mid-step REBUILD, Simulation._advance "
-                          "snapshots the drifted, half-kicked bodies as the 'last "
-                          "good' state",
-                   strict=False)
 def test_last_good_state_after_a_rebuild_is_not_mid_step(tmp_path):
     sim = _head_on(skin=None)  # default skin: the list is rebuilt mid-step first
     path = tmp_path / "last_good.h5"

@@ -79,21 +79,25 @@ def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodi
     n_stencil = 1
     for a in range(d):
         n_stencil *= n_off[a]
+    stencil = np.empty((n_stencil, d), np.int64)  # decoded once, not per particle
+    for t in range(n_stencil):
+        rem = t
+        for a in range(d - 1, -1, -1):
+            stencil[t, a] = offs[a, rem % n_off[a]]
+            rem //= n_off[a]
     buf = np.empty(64, np.int64)
     bimg = np.empty((64, d), np.int64)
+    order = np.empty(64, np.int64)
     n_pairs = 0
     cell = np.empty(d, np.int64)
     for s in range(ns):
         i = sphere_ids[s]
         m = 0
         for t in range(n_stencil):
-            rem = t
             ok = True
             c = 0
-            for a in range(d - 1, -1, -1):
-                o = offs[a, rem % n_off[a]]
-                rem //= n_off[a]
-                ca = coords[s, a] + o
+            for a in range(d):
+                ca = coords[s, a] + stencil[t, a]
                 if ca < 0 or ca >= n_cells[a]:
                     if periodic[a]:
                         ca = (ca + n_cells[a]) % n_cells[a]
@@ -124,6 +128,7 @@ def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodi
                         ni = np.empty((2 * m, d), np.int64)
                         ni[:m] = bimg
                         bimg = ni
+                        order = np.empty(2 * m, np.int64)
                     buf[m] = j
                     for a in range(d):
                         if periodic[a]:
@@ -132,23 +137,22 @@ def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodi
                         else:
                             bimg[m, a] = 0
                     m += 1
-        # insertion sort of this row by j (rows are short)
+        # insertion sort of this row's slots by j (rows are short)
+        for u in range(m):
+            order[u] = u
         for u in range(1, m):
-            bj = buf[u]
-            bi = bimg[u].copy()
+            t = order[u]
             v = u - 1
-            while v >= 0 and buf[v] > bj:
-                buf[v + 1] = buf[v]
-                bimg[v + 1] = bimg[v]
+            while v >= 0 and buf[order[v]] > buf[t]:
+                order[v + 1] = order[v]
                 v -= 1
-            buf[v + 1] = bj
-            bimg[v + 1] = bi
+            order[v + 1] = t
         for u in range(m):
             if n_pairs < cap:
                 pairs_out[n_pairs, 0] = i
-                pairs_out[n_pairs, 1] = buf[u]
+                pairs_out[n_pairs, 1] = buf[order[u]]
                 for a in range(d):
-                    img_out[n_pairs, a] = bimg[u, a]
+                    img_out[n_pairs, a] = bimg[order[u], a]
             n_pairs += 1
     return n_pairs
 

@@ -16,6 +16,9 @@ log = logging.getLogger(__name__)
 #: default time step as a fraction of the critical step (chosen from the
 #: speed-accuracy chart, docs/performance.md)
 DT_FACTOR = 0.15
+#: the step loop evaluates the Verlet pairs within this fraction of the skin (the
+#: inner list, refreshed from the Verlet list when a body has moved half of it)
+INNER_SKIN = 0.1
 #: scenes with fewer bodies run on one thread unless told otherwise
 PARALLEL_MIN_BODIES = 1000
 
@@ -144,6 +147,8 @@ class Simulation:
     def _rebuild(self):
         """Rebuild the neighbour lists, carrying contact history by pair key."""
         b, nl = self.bodies, self.neighbors
+        if self.dim == 3:  # the step's rotation update is unit only to O((w dt)^4)
+            b.rot /= np.linalg.norm(b.rot, axis=1, keepdims=True)
         old = (nl.pairs, getattr(self, "hist", None), getattr(nl, "wall_pairs", None),
                getattr(self, "whist", None))
         nl.build(b)
@@ -169,6 +174,9 @@ class Simulation:
         self._inc = np.zeros(2 * nl.pairs.shape[0], np.int64)
         self._wstart = np.zeros(n + 1, np.int64)
         incidence_merged(nl.pairs, n, self._inc_start, self._inc)
+        self._inner = np.zeros(nl.pairs.shape[0], np.int64)
+        self._n_inner = np.full(1, -1, np.int64)  # made by the next force evaluation
+        self._pos_inner = self.bodies.pos.copy()
         incidence(nl.wall_pairs, n, 0, self._wstart, np.zeros(nl.wall_pairs.shape[0], np.int64))
 
     def _call(self, n_steps, prime, resume=False):
@@ -179,6 +187,7 @@ class Simulation:
             b.mass, self._inv_mass, self._inv_inertia, self._fixed, b.normal, b.mat_id,
             nl.pos_ref, self._grow(), self._hmat, nl.pairs, nl.img, self.touch, self.hist,
             self.fpair, self.tpi, self.tpj, self._inc_start, self._inc, self._params_pp,
+            self._inner, self._n_inner, self._pos_inner, INNER_SKIN * nl.skin,
             nl.wall_pairs, self.whist, self.wforce, self.wtorque, self._wstart,
             self._params_pw, self._status, self.wall_work)
 

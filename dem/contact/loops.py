@@ -9,8 +9,11 @@ One step, in this order (the ``Simulation.run`` contract):
 
 1. half kick and drift of free bodies (``v += dt/2 F/m``, ``x += dt v``, angle or
    quaternion update); fixed bodies drift at their prescribed velocity;
-2. if a body is now more than ``skin / 2`` from where the neighbour list was built
-   (less any radius growth since): stop with status ``REBUILD``; Python rebuilds the list and calls again with
+2. if a body is now more than ``skin_inner / 2`` from where the inner list was made
+   (less any radius growth), refresh the inner list (the Verlet pairs closer than
+   ``r_i + r_j + skin_inner``, the only ones evaluated every step); if the Verlet list
+   itself no longer holds (a body more than ``skin / 2`` from where it was built):
+   stop with status ``REBUILD``; Python rebuilds the list and calls again with
    ``resume=True``, which finishes this step from 3;
 3. sphere-sphere contacts: overlap, relative velocity at the contact point, law;
 4. sphere-wall contacts, likewise;
@@ -216,6 +219,39 @@ def _finish_body(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, m
             ang_vel[b, 2] += half * tz * inv_inertia[b, 2]
 
 
+@kernel
+def _filter_inner(dim, periodic, pos, radius, hmat, pairs, img, touch, hist, skin_inner,
+                  inner_out):
+    """Indices (ascending) of the Verlet pairs closer than ``r_i + r_j + skin_inner``.
+
+    The step loop evaluates only these until a body has moved ``skin_inner / 2``: most
+    Verlet pairs are not touching, and testing them every step costs more than this
+    pass every few steps. A pair left out that was touching has opened: its history
+    is reset here. Returns the count.
+    """
+    q = 0
+    for k in range(pairs.shape[0]):
+        i = pairs[k, 0]
+        j = pairs[k, 1]
+        r2 = 0.0
+        for a in range(dim):
+            dx = pos[j, a] - pos[i, a]
+            if periodic:
+                for c in range(dim):
+                    dx += hmat[a, c] * img[k, c]
+            r2 += dx * dx
+        cut = radius[i] + radius[j] + skin_inner
+        if r2 < cut * cut:
+            inner_out[q] = k
+            q += 1
+        elif touch[k]:
+            touch[k] = 0
+            hist[k, 0] = 0.0
+            hist[k, 1] = 0.0
+            hist[k, 2] = 0.0
+    return q
+
+
 def stepper(dim, law_pp, law_pw, periodic=False):
     """The compiled multi-step kernel for ``dim`` (2 or 3) and two law codes.
 
@@ -234,6 +270,7 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                   pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass,
                   inv_inertia, is_fixed, normal, mat_id, pos_ref, grow, hmat,
                   pairs, img, touch, hist, fpair, tpi, tpj, inc_start, inc, params_pp,
+                  inner, n_inner, pos_inner, skin_inner,
                   wpairs, whist, wforce, wtorque, wstart, params_pw,
                   status_out, work_out):
         """Advance ``n_steps``; returns the number of completed steps.
@@ -266,7 +303,7 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                     if is_fixed[b]:
                         for a in range(DIM):
                             pos[b, a] += dt * vel[b, a]
-                            dx = pos[b, a] - pos_ref[b, a]
+                            dx = pos[b, a] - pos_inner[b, a]
                             s2 += dx * dx
                             if serial:
                                 force[b, a] = 0.0
@@ -278,7 +315,7 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                     for a in range(DIM):
                         vel[b, a] += half * force[b, a] * inv_mass[b]
                         pos[b, a] += dt * vel[b, a]
-                        dx = pos[b, a] - pos_ref[b, a]
+                        dx = pos[b, a] - pos_inner[b, a]
                         s2 += dx * dx
                         if serial:  # the scatter below accumulates into force
                             force[b, a] = 0.0
@@ -299,35 +336,53 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                             torque[b, 0] = 0.0
                             torque[b, 1] = 0.0
                             torque[b, 2] = 0.0
-                        # rotation by |w| dt about w: unit quaternion with half-angle
-                        # atan(|w| dt / 2) (the exponential map to O((|w| dt)^3))
+                        # rotation by |w| dt about w: r = (1 - |h|^2/2, h), h = w dt/2,
+                        # is the exponential map to O(|h|^3) and a unit quaternion to
+                        # O(|h|^4) without a square root; quaternions are renormalised
+                        # at every neighbour rebuild
                         hx, hy, hz = half * wx, half * wy, half * wz
-                        c = 1.0 / math.sqrt(1.0 + hx * hx + hy * hy + hz * hz)
-                        rw, rx, ry, rz = c, c * hx, c * hy, c * hz
+                        rw = 1.0 - 0.5 * (hx * hx + hy * hy + hz * hz)
+                        rx, ry, rz = hx, hy, hz
                         qw, qx, qy, qz = rot[b, 0], rot[b, 1], rot[b, 2], rot[b, 3]
                         rot[b, 0] = rw * qw - rx * qx - ry * qy - rz * qz
                         rot[b, 1] = rw * qx + rx * qw + ry * qz - rz * qy
                         rot[b, 2] = rw * qy - rx * qz + ry * qw + rz * qx
                         rot[b, 3] = rw * qz + rx * qy - ry * qx + rz * qw
-                # ---- 2. the neighbour list must hold for the new positions (and radii:
-                # ``grow`` is the largest radius growth since the build)
-                if n_bad > 0 or not (2.0 * (math.sqrt(maxd2) + grow) <= skin):
-                    if n_bad > 0 or not math.isfinite(maxd2):
-                        status_out[0] = NONFINITE
-                        status_out[1] = -1
-                    else:
-                        status_out[0] = REBUILD
+                # ---- 2. the contact candidates must hold for the new positions (and
+                # radii: ``grow`` is the largest radius growth since the build)
+                if n_bad > 0 or not math.isfinite(maxd2):
+                    status_out[0] = NONFINITE
+                    status_out[1] = -1
                     return done
+                if 2.0 * (math.sqrt(maxd2) + grow) > skin_inner:
+                    n_inner[0] = -1
+            if n_inner[0] < 0:
+                # refresh the inner list from the Verlet list, which must still hold
+                maxd2 = 0.0
+                for b in numba.prange(n):
+                    s2 = 0.0
+                    for a in range(DIM):
+                        dx = pos[b, a] - pos_ref[b, a]
+                        s2 += dx * dx
+                    maxd2 = max(maxd2, s2)
+                if 2.0 * (math.sqrt(maxd2) + grow) > skin:
+                    status_out[0] = REBUILD
+                    return done
+                n_inner[0] = _filter_inner(DIM, PERIODIC, pos, radius, hmat, pairs, img,
+                                           touch, hist, skin_inner, inner)
+                pos_inner[:, :] = pos
             if serial:
                 # ---- 3-5 on one thread: scatter as we go, in pair order
                 if prime or (resume and it == 0):  # else the drift zeroed them
                     force[:, :] = 0.0
                     torque[:, :] = 0.0
 
-                for k in range(m):
+                for q in range(n_inner[0]):
+                    k = inner[q]
                     (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
-                        k, DIM, PP, PERIODIC, pos, vel, ang_vel, radius, inv_mass, mat_id, hmat,
-                        pairs, img, touch, hist, params_pp, hdt, overlap_limit, status_out)
+                        k, DIM, PP, PERIODIC, pos, vel, ang_vel, radius, inv_mass, mat_id,
+                        hmat, pairs, img, touch, hist, params_pp, hdt, overlap_limit,
+                        status_out)
                     if not on:
                         continue
                     i = pairs[k, 0]
@@ -377,10 +432,12 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                                  status_out)
             else:
                 # ---- 3. sphere-sphere contacts, parallel over pairs
-                for k in numba.prange(m):
+                for q in numba.prange(n_inner[0]):
+                    k = inner[q]
                     (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
-                        k, DIM, PP, PERIODIC, pos, vel, ang_vel, radius, inv_mass, mat_id, hmat,
-                        pairs, img, touch, hist, params_pp, hdt, overlap_limit, status_out)
+                        k, DIM, PP, PERIODIC, pos, vel, ang_vel, radius, inv_mass, mat_id,
+                        hmat, pairs, img, touch, hist, params_pp, hdt, overlap_limit,
+                        status_out)
                     if not on:
                         continue
                     fpair[k, 0] = fx

@@ -11,7 +11,10 @@ A checkpoint is an HDF5 file holding the full state of a :class:`~dem.Simulation
     /box/        lo, hi (d,) [m], periodic (d,) bool (only if the scene has a box)
     /contacts/   per sphere pair: hist (m, 3), touch (m,) uint8, fpair (m, d), tpi, tpj;
                  per sphere-wall pair: whist (mw, 3), wforce (mw, d), wtorque;
-                 radius_ref (n,), the radii at the last neighbour build
+                 radius_ref (n,), the radii at the last neighbour build;
+                 inner (n_inner,) int64 and pos_inner (n, d): the pairs the step
+                 loop evaluates and the positions they were chosen at (attr n_inner,
+                 -1 when the list is due to be remade)
     /model/      params_pp, params_pw: the parameter tables in use (a restart with
                  other tables is allowed but logged as a warning)
 
@@ -189,6 +192,11 @@ def save_checkpoint(sim, path):
             if hasattr(sim, name):  # "touch" is absent from older cores
                 g.create_dataset(name, data=getattr(sim, name))
         g.create_dataset("radius_ref", data=sim._radius_ref)
+        # the inner list decides when the Verlet list is rebuilt: part of the state
+        n_inner = int(sim._n_inner[0])
+        g.attrs["n_inner"] = n_inner
+        g.create_dataset("inner", data=sim._inner[:max(n_inner, 0)])
+        g.create_dataset("pos_inner", data=sim._pos_inner)
         g = f.create_group("model")
         g.create_dataset("params_pp", data=sim._params_pp)
         g.create_dataset("params_pw", data=sim._params_pw)
@@ -248,6 +256,11 @@ def load_checkpoint(path, model, observers=(), controllers=(), state_objects=())
     sim._radius_ref = state["radius_ref"]
     sim._refresh_tables()
     sim._index()
+    n_inner, inner, pos_inner = state["inner"]
+    if n_inner >= 0:
+        sim._inner[:n_inner] = inner
+        sim._pos_inner[:] = pos_inner
+    sim._n_inner[0] = n_inner
     sim._primed = True
     for name in ("params_pp", "params_pw"):
         saved, now = state["model"].get(name), getattr(sim, "_" + name)
@@ -300,6 +313,16 @@ def _read_checkpoint(path, f):
             elif name != "touch":
                 raise ValueError(f"{path}: contacts/{name} is missing")
     radius_ref = _checked(path, "contacts/radius_ref", g["radius_ref"], (n,), _F8)
+    n_inner = int(g.attrs.get("n_inner", -1))
+    if not -1 <= n_inner <= m:
+        raise ValueError(f"{path}: contacts/n_inner = {n_inner} is outside -1..{m}")
+    inner = np.zeros(0, np.int64)
+    pos_inner = None
+    if n_inner >= 0:
+        inner = _checked(path, "contacts/inner", g["inner"], (n_inner,), np.dtype(np.int64))
+        pos_inner = _checked(path, "contacts/pos_inner", g["pos_inner"], (n, d), _F8)
+        if inner.size and (inner.min() < 0 or inner.max() >= m):
+            raise ValueError(f"{path}: contacts/inner refers to pairs outside 0..{m - 1}")
     box = None
     if attrs["has_box"]:
         g = f["box"]
@@ -309,7 +332,8 @@ def _read_checkpoint(path, f):
     model = {k: v[()] for k, v in f["model"].items()} if "model" in f else {}
     return {"attrs": attrs, "bodies": bodies, "gravity": gravity,
             "wall_work": wall_work, "neighbors": neighbors, "contacts": contacts,
-            "radius_ref": radius_ref, "box": box, "model": model}
+            "radius_ref": radius_ref, "box": box, "model": model,
+            "inner": (n_inner, inner, pos_inner)}
 
 
 # ------------------------------------------------------------------ failure output

@@ -199,30 +199,6 @@ def carry_history(old_pairs, old_hist, new_pairs, new_hist_out):
 
 
 @kernel
-def incidence_merged(pairs, n, start_out, list_out):
-    """Every body's pair incidences in ascending pair order (CSR).
-
-    ``start_out`` (n + 1,), ``list_out`` (2 m,) int64 with entries ``2 k`` (the body is
-    i of pair k) or ``2 k + 1`` (it is j). Summing a body's pair forces in this order
-    gives the same floating-point result as adding them pair by pair.
-    """
-    start_out[:] = 0
-    for k in range(pairs.shape[0]):
-        start_out[pairs[k, 0] + 1] += 1
-        start_out[pairs[k, 1] + 1] += 1
-    for b in range(n):
-        start_out[b + 1] += start_out[b]
-    fill = start_out[:n].copy()
-    for k in range(pairs.shape[0]):
-        i = pairs[k, 0]
-        j = pairs[k, 1]
-        list_out[fill[i]] = 2 * k
-        fill[i] += 1
-        list_out[fill[j]] = 2 * k + 1
-        fill[j] += 1
-
-
-@kernel
 def incidence(pairs, n, col, start_out, list_out):
     """CSR of the rows of ``pairs`` where column ``col`` equals each body, rows in order.
 

@@ -6,9 +6,9 @@ import math
 import numba
 import numpy as np
 
-from .contact.loops import NONFINITE, OK, OVERLAP, REBUILD, stepper
+from .contact.loops import NONFINITE, OK, OVERLAP, REBUILD, inner_incidence, stepper
 from .contact.model import ContactModel
-from .neighbors import Box, NeighborList, carry_history, incidence, incidence_merged
+from .neighbors import Box, NeighborList, carry_history, incidence
 from .shapes import Shape
 
 log = logging.getLogger(__name__)
@@ -126,6 +126,7 @@ class Simulation:
         self.step = 0
         self.time = 0.0
         self.wall_work = np.zeros(1)
+        self.n_inner_refreshes = 0  # diagnostics: inner contact list remade
         self._status = np.zeros(4, np.int64)
         self._kernel = stepper(self.dim, model.kind("pp").code, model.kind("pw").code,
                                periodic=box is not None and bool(np.any(box.periodic)))
@@ -170,14 +171,22 @@ class Simulation:
 
     def _index(self):
         n, nl = self.bodies.n, self.neighbors
-        self._inc_start = np.zeros(n + 1, np.int64)
+        self._inc_start = np.zeros(n + 1, np.int64)  # made with the inner list
         self._inc = np.zeros(2 * nl.pairs.shape[0], np.int64)
         self._wstart = np.zeros(n + 1, np.int64)
-        incidence_merged(nl.pairs, n, self._inc_start, self._inc)
         self._inner = np.zeros(nl.pairs.shape[0], np.int64)
         self._n_inner = np.full(1, -1, np.int64)  # made by the next force evaluation
         self._pos_inner = self.bodies.pos.copy()
         incidence(nl.wall_pairs, n, 0, self._wstart, np.zeros(nl.wall_pairs.shape[0], np.int64))
+
+    def _restore_inner(self, n_inner, inner, pos_inner):
+        """Set the inner contact list (checkpoint restart); -1 remakes it next step."""
+        self._n_inner[0] = n_inner
+        if n_inner >= 0:
+            self._inner[:n_inner] = inner
+            self._pos_inner[:] = pos_inner
+            inner_incidence(self.neighbors.pairs, self._inner, n_inner, self._inc_start,
+                            self._inc)
 
     def _call(self, n_steps, prime, resume=False):
         b, nl = self.bodies, self.neighbors
@@ -262,6 +271,7 @@ class Simulation:
             if not resume:  # a chunk resumed mid-step keeps the snapshot of its start
                 snapshot = self._snapshot_bodies()
             done = self._call(n, False, resume)
+            self.n_inner_refreshes += int(self._status[3])
             self.step += done
             self.time = self.step * self.dt
             n -= done

@@ -23,7 +23,8 @@ Summation order is fixed, so results do not depend on the number of threads. On 
 thread, 3 and 4 add each contact's force to its bodies as they go (pair order). On
 several threads, 3 and 4 run in parallel over pairs and store per-pair results, and 5
 gathers them per body in parallel, visiting each body's pairs in ascending pair order
-(``inc``: a body's incidences sorted by pair index), which is the same order and
+(``inc``: a body's incidences in the inner list, sorted by pair index, made with the
+inner list), which is the same order and
 therefore the same floating-point sum. ``touch[k]`` marks the pairs in contact at the
 last force evaluation.
 """
@@ -173,6 +174,60 @@ def _sphere_wall(k, dim, code, pos, vel, ang_vel, radius, inv_mass, mat_id, norm
 
 
 @kernel(inline=True)
+def _drift_body(b, dim, serial, dt, half, pos, vel, rot, ang_vel, force, torque, inv_mass,
+                inv_inertia, is_fixed, pos_inner):
+    """Half kick and drift of body b (fixed bodies: drift at their velocity).
+
+    Zeroes b's force and torque when ``serial`` (the one-thread force loop adds into
+    them). Returns the squared displacement [m^2] since the inner list was made.
+    """
+    s2 = 0.0
+    if is_fixed[b]:
+        for a in range(dim):
+            pos[b, a] += dt * vel[b, a]
+            dx = pos[b, a] - pos_inner[b, a]
+            s2 += dx * dx
+            if serial:
+                force[b, a] = 0.0
+        if serial:
+            for a in range(torque.shape[1]):
+                torque[b, a] = 0.0
+        return s2
+    for a in range(dim):
+        vel[b, a] += half * force[b, a] * inv_mass[b]
+        pos[b, a] += dt * vel[b, a]
+        dx = pos[b, a] - pos_inner[b, a]
+        s2 += dx * dx
+        if serial:
+            force[b, a] = 0.0
+    if dim == 2:
+        ang_vel[b, 0] += half * torque[b, 0] * inv_inertia[b, 0]
+        rot[b, 0] += dt * ang_vel[b, 0]
+        if serial:
+            torque[b, 0] = 0.0
+    else:
+        wx = ang_vel[b, 0] + half * torque[b, 0] * inv_inertia[b, 0]
+        wy = ang_vel[b, 1] + half * torque[b, 1] * inv_inertia[b, 1]
+        wz = ang_vel[b, 2] + half * torque[b, 2] * inv_inertia[b, 2]
+        ang_vel[b, 0], ang_vel[b, 1], ang_vel[b, 2] = wx, wy, wz
+        if serial:
+            torque[b, 0] = 0.0
+            torque[b, 1] = 0.0
+            torque[b, 2] = 0.0
+        # rotation by |w| dt about w: r = (1 - |h|^2/2, h), h = w dt/2, is the
+        # exponential map to O(|h|^3) and a unit quaternion to O(|h|^4) without a
+        # square root; quaternions are renormalised at every neighbour rebuild
+        hx, hy, hz = half * wx, half * wy, half * wz
+        rw = 1.0 - 0.5 * (hx * hx + hy * hy + hz * hz)
+        qw, qx, qy, qz = rot[b, 0], rot[b, 1], rot[b, 2], rot[b, 3]
+        rot[b, 0] = rw * qw - hx * qx - hy * qy - hz * qz
+        rot[b, 1] = rw * qx + hx * qw + hy * qz - hz * qy
+        rot[b, 2] = rw * qy - hx * qz + hy * qw + hz * qx
+        rot[b, 3] = rw * qz + hx * qy - hy * qx + hz * qw
+    return s2
+
+
+@kernel(inline=True)
 def _finish_body(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, mass,
                  inv_mass, inv_inertia, is_fixed, vel, ang_vel, force, torque, status_out):
     """Add gravity and local damping to body b's contact force, store it, half kick."""
@@ -221,13 +276,15 @@ def _finish_body(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, m
 
 @kernel
 def _filter_inner(dim, periodic, pos, radius, hmat, pairs, img, touch, hist, skin_inner,
-                  inner_out):
+                  inner_out, inc_start_out, inc_out):
     """Indices (ascending) of the Verlet pairs closer than ``r_i + r_j + skin_inner``.
 
     The step loop evaluates only these until a body has moved ``skin_inner / 2``: most
     Verlet pairs are not touching, and testing them every step costs more than this
     pass every few steps. A pair left out that was touching has opened: its history
-    is reset here. Returns the count.
+    is reset here. Also writes every body's incidences in these pairs, in ascending
+    pair order (``inc_start_out`` (n + 1,), ``inc_out`` entries ``2 k`` where the body is
+    i of pair k, ``2 k + 1`` where it is j), for the parallel gather. Returns the count.
     """
     q = 0
     for k in range(pairs.shape[0]):
@@ -249,7 +306,32 @@ def _filter_inner(dim, periodic, pos, radius, hmat, pairs, img, touch, hist, ski
             hist[k, 0] = 0.0
             hist[k, 1] = 0.0
             hist[k, 2] = 0.0
+    inner_incidence(pairs, inner_out, q, inc_start_out, inc_out)
     return q
+
+
+@kernel
+def inner_incidence(pairs, inner, n_inner, inc_start_out, inc_out):
+    """Every body's incidences in the inner list, in ascending pair order (CSR)."""
+    n = inc_start_out.shape[0] - 1
+    inc_start_out[:] = 0
+    for u in range(n_inner):
+        k = inner[u]
+        inc_start_out[pairs[k, 0] + 1] += 1
+        inc_start_out[pairs[k, 1] + 1] += 1
+    for b in range(n):
+        inc_start_out[b + 1] += inc_start_out[b]
+    for u in range(n_inner):  # inc_start_out[b] is b's fill pointer here, restored below
+        k = inner[u]
+        i = pairs[k, 0]
+        j = pairs[k, 1]
+        inc_out[inc_start_out[i]] = 2 * k
+        inc_start_out[i] += 1
+        inc_out[inc_start_out[j]] = 2 * k + 1
+        inc_start_out[j] += 1
+    for b in range(n, 0, -1):
+        inc_start_out[b] = inc_start_out[b - 1]
+    inc_start_out[0] = 0
 
 
 def stepper(dim, law_pp, law_pw, periodic=False):
@@ -280,7 +362,7 @@ def stepper(dim, law_pp, law_pw, periodic=False):
         drift was done by the previous call (which stopped with ``REBUILD``).
         ``serial`` = True takes the one-thread path (the caller knows the thread
         count; asking numba from here would make the kernel uncacheable).
-        ``status_out`` (4,) int64 receives (code, i, j, 0); ``work_out`` (1,)
+        ``status_out`` (4,) int64 receives (code, i, j, inner-list refreshes); ``work_out`` (1,)
         accumulates the work of walls on bodies [J].
         """
         n = pos.shape[0]
@@ -288,6 +370,7 @@ def stepper(dim, law_pp, law_pw, periodic=False):
         mw = wpairs.shape[0]
         nr = torque.shape[1]
         status_out[0] = OK
+        status_out[3] = 0
         done = 0
         half = 0.5 * dt
         hdt = 0.0 if prime else dt
@@ -299,55 +382,12 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                 maxd2 = 0.0
                 n_bad = 0
                 for b in numba.prange(n):
-                    s2 = 0.0
-                    if is_fixed[b]:
-                        for a in range(DIM):
-                            pos[b, a] += dt * vel[b, a]
-                            dx = pos[b, a] - pos_inner[b, a]
-                            s2 += dx * dx
-                            if serial:
-                                force[b, a] = 0.0
-                        if serial:
-                            for a in range(nr):
-                                torque[b, a] = 0.0
-                        maxd2 = max(maxd2, s2)
-                        continue
-                    for a in range(DIM):
-                        vel[b, a] += half * force[b, a] * inv_mass[b]
-                        pos[b, a] += dt * vel[b, a]
-                        dx = pos[b, a] - pos_inner[b, a]
-                        s2 += dx * dx
-                        if serial:  # the scatter below accumulates into force
-                            force[b, a] = 0.0
+                    s2 = _drift_body(b, DIM, serial, dt, half, pos, vel, rot, ang_vel,
+                                     force, torque, inv_mass, inv_inertia, is_fixed,
+                                     pos_inner)
                     if not math.isfinite(s2):
                         n_bad += 1
                     maxd2 = max(maxd2, s2)
-                    if DIM == 2:
-                        ang_vel[b, 0] += half * torque[b, 0] * inv_inertia[b, 0]
-                        rot[b, 0] += dt * ang_vel[b, 0]
-                        if serial:
-                            torque[b, 0] = 0.0
-                    else:
-                        wx = ang_vel[b, 0] + half * torque[b, 0] * inv_inertia[b, 0]
-                        wy = ang_vel[b, 1] + half * torque[b, 1] * inv_inertia[b, 1]
-                        wz = ang_vel[b, 2] + half * torque[b, 2] * inv_inertia[b, 2]
-                        ang_vel[b, 0], ang_vel[b, 1], ang_vel[b, 2] = wx, wy, wz
-                        if serial:
-                            torque[b, 0] = 0.0
-                            torque[b, 1] = 0.0
-                            torque[b, 2] = 0.0
-                        # rotation by |w| dt about w: r = (1 - |h|^2/2, h), h = w dt/2,
-                        # is the exponential map to O(|h|^3) and a unit quaternion to
-                        # O(|h|^4) without a square root; quaternions are renormalised
-                        # at every neighbour rebuild
-                        hx, hy, hz = half * wx, half * wy, half * wz
-                        rw = 1.0 - 0.5 * (hx * hx + hy * hy + hz * hz)
-                        rx, ry, rz = hx, hy, hz
-                        qw, qx, qy, qz = rot[b, 0], rot[b, 1], rot[b, 2], rot[b, 3]
-                        rot[b, 0] = rw * qw - rx * qx - ry * qy - rz * qz
-                        rot[b, 1] = rw * qx + rx * qw + ry * qz - rz * qy
-                        rot[b, 2] = rw * qy - rx * qz + ry * qw + rz * qx
-                        rot[b, 3] = rw * qz + rx * qy - ry * qx + rz * qw
                 # ---- 2. the contact candidates must hold for the new positions (and
                 # radii: ``grow`` is the largest radius growth since the build)
                 if n_bad > 0 or not math.isfinite(maxd2):
@@ -368,8 +408,9 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                 if 2.0 * (math.sqrt(maxd2) + grow) > skin:
                     status_out[0] = REBUILD
                     return done
+                status_out[3] += 1  # inner refreshes, counted by the caller
                 n_inner[0] = _filter_inner(DIM, PERIODIC, pos, radius, hmat, pairs, img,
-                                           touch, hist, skin_inner, inner)
+                                           touch, hist, skin_inner, inner, inc_start, inc)
                 pos_inner[:, :] = pos
             if serial:
                 # ---- 3-5 on one thread: scatter as we go, in pair order

@@ -256,11 +256,7 @@ def load_checkpoint(path, model, observers=(), controllers=(), state_objects=())
     sim._radius_ref = state["radius_ref"]
     sim._refresh_tables()
     sim._index()
-    n_inner, inner, pos_inner = state["inner"]
-    if n_inner >= 0:
-        sim._inner[:n_inner] = inner
-        sim._pos_inner[:] = pos_inner
-    sim._n_inner[0] = n_inner
+    sim._restore_inner(*state["inner"])
     sim._primed = True
     for name in ("params_pp", "params_pw"):
         saved, now = state["model"].get(name), getattr(sim, "_" + name)

@@ -140,6 +140,8 @@ def build_scene(sdir, scene, dt=None, dt_factor=None):
     pos, radius = load_packing(sdir)
     n = pos.shape[0]
     bodies = dem.Bodies.spheres(pos, radius=radius, density=P["RHO"])
+    # spatial order in memory, as LAMMPS and LIGGGHTS sort their atoms by default
+    bodies.sort_spatially()
     lx, ly = P["LX"], P["LY"]
     bodies.add_plane([0.0, 0.0, 0.0], [1.0, 0.0, 0.0])
     bodies.add_plane([lx, 0.0, 0.0], [-1.0, 0.0, 0.0])

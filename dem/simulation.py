@@ -13,9 +13,10 @@ from .shapes import Shape
 
 log = logging.getLogger(__name__)
 
-#: default time step as a fraction of the critical step (chosen from the
-#: speed-accuracy chart, docs/performance.md)
-DT_FACTOR = 0.15
+#: default time step as a fraction of the critical step, from the speed-accuracy chart
+#: (docs/performance.md): the largest factor whose binary-collision errors, averaged
+#: over where in a step contacts start, stay below 1% (about 22 steps per contact)
+DT_FACTOR = 0.07
 #: the step loop evaluates the Verlet pairs within this fraction of the skin (the
 #: inner list, refreshed from the Verlet list when a body has moved half of it)
 INNER_SKIN = 0.1
@@ -162,8 +163,6 @@ class Simulation:
         # a pair with history was touching; others are found by the next force pass
         self.touch = np.any(self.hist != 0.0, axis=1).astype(np.uint8)
         self.fpair = np.zeros((m, d))
-        self.tpi = np.zeros((m, nr))
-        self.tpj = np.zeros((m, nr))
         self.wforce = np.zeros((mw, d))
         self.wtorque = np.zeros((mw, nr))
         self._index()
@@ -171,8 +170,10 @@ class Simulation:
 
     def _index(self):
         n, nl = self.bodies.n, self.neighbors
+        m = nl.pairs.shape[0]
         self._inc_start = np.zeros(n + 1, np.int64)  # made with the inner list
-        self._inc = np.zeros(2 * nl.pairs.shape[0], np.int64)
+        self._slot = np.zeros((m, 2), np.int64)
+        self._contrib = np.zeros((2 * m, self.dim + self.bodies.n_rot))
         self._wstart = np.zeros(n + 1, np.int64)
         self._inner = np.zeros(nl.pairs.shape[0], np.int64)
         self._n_inner = np.full(1, -1, np.int64)  # made by the next force evaluation
@@ -186,7 +187,7 @@ class Simulation:
             self._inner[:n_inner] = inner
             self._pos_inner[:] = pos_inner
             inner_incidence(self.neighbors.pairs, self._inner, n_inner, self._inc_start,
-                            self._inc)
+                            self._slot)
 
     def _call(self, n_steps, prime, resume=False):
         b, nl = self.bodies, self.neighbors
@@ -195,7 +196,7 @@ class Simulation:
             self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel, b.force, b.torque, b.radius,
             b.mass, self._inv_mass, self._inv_inertia, self._fixed, b.normal, b.mat_id,
             nl.pos_ref, self._grow(), self._hmat, nl.pairs, nl.img, self.touch, self.hist,
-            self.fpair, self.tpi, self.tpj, self._inc_start, self._inc, self._params_pp,
+            self.fpair, self._contrib, self._slot, self._inc_start, self._params_pp,
             self._inner, self._n_inner, self._pos_inner, INNER_SKIN * nl.skin,
             nl.wall_pairs, self.whist, self.wforce, self.wtorque, self._wstart,
             self._params_pw, self._status, self.wall_work)

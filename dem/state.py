@@ -205,6 +205,48 @@ class Bodies:
         k = 0.4 if self.dim == 3 else 0.5
         self.inertia[ids[free]] = (k * m * radius**2)[free, None]
 
+    def sort_spatially(self, cell=None):
+        """Reorder the spheres along a Z-order (Morton) curve of cells, in place.
+
+        Neighbours then sit close together in memory, which makes the contact loop
+        faster (a few percent to tens of percent, growing with the scene). Call it while
+        setting a scene up, before keeping any body index (trackers, state objects):
+        rows are renumbered. Walls keep their rows.
+
+        Parameters
+        ----------
+        cell : float, optional
+            Cell size [m]; default the largest sphere diameter.
+
+        Returns
+        -------
+        order : (n,) int64
+            The new row ``r`` holds what was row ``order[r]``.
+
+        Examples
+        --------
+        >>> b = Bodies.spheres([[3.0, 0.0], [0.0, 0.0], [1.0, 0.0]], radius=0.5, density=1.0)
+        >>> b.sort_spatially().tolist(), b.pos[:, 0].tolist()
+        ([1, 2, 0], [0.0, 1.0, 3.0])
+        """
+        rows = self.ids(Shape.SPHERE)
+        order = np.arange(self.n)
+        if rows.size < 2:
+            return order
+        p = self.pos[rows]
+        cell = 2.0 * float(self.radius[rows].max()) if cell is None else float(cell)
+        bits = 21 if self.dim == 3 else 31
+        c = np.floor((p - p.min(axis=0)) / cell).astype(np.int64)
+        c = np.clip(c, 0, (1 << bits) - 1)
+        key = np.zeros(rows.size, np.int64)
+        for bit in range(bits):
+            for a in range(self.dim):
+                key |= ((c[:, a] >> bit) & 1) << (self.dim * bit + a)
+        order[rows] = rows[np.argsort(key, kind="stable")]
+        for name in self.ARRAYS:
+            setattr(self, name, np.ascontiguousarray(getattr(self, name)[order]))
+        return order
+
     ARRAYS = ("pos", "vel", "rot", "ang_vel", "force", "torque", "radius", "mass",
               "inertia", "kind", "mat_id", "is_fixed", "normal", "density")
 

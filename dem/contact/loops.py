@@ -276,15 +276,14 @@ def _finish_body(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, m
 
 @kernel
 def _filter_inner(dim, periodic, pos, radius, hmat, pairs, img, touch, hist, skin_inner,
-                  inner_out, inc_start_out, inc_out):
+                  inner_out, inc_start_out, slot_out):
     """Indices (ascending) of the Verlet pairs closer than ``r_i + r_j + skin_inner``.
 
     The step loop evaluates only these until a body has moved ``skin_inner / 2``: most
     Verlet pairs are not touching, and testing them every step costs more than this
     pass every few steps. A pair left out that was touching has opened: its history
-    is reset here. Also writes every body's incidences in these pairs, in ascending
-    pair order (``inc_start_out`` (n + 1,), ``inc_out`` entries ``2 k`` where the body is
-    i of pair k, ``2 k + 1`` where it is j), for the parallel gather. Returns the count.
+    is reset here. Also makes the incidence rows of the parallel gather
+    (:func:`inner_incidence`). Returns the count.
     """
     q = 0
     for k in range(pairs.shape[0]):
@@ -306,13 +305,19 @@ def _filter_inner(dim, periodic, pos, radius, hmat, pairs, img, touch, hist, ski
             hist[k, 0] = 0.0
             hist[k, 1] = 0.0
             hist[k, 2] = 0.0
-    inner_incidence(pairs, inner_out, q, inc_start_out, inc_out)
+    inner_incidence(pairs, inner_out, q, inc_start_out, slot_out)
     return q
 
 
 @kernel
-def inner_incidence(pairs, inner, n_inner, inc_start_out, inc_out):
-    """Every body's incidences in the inner list, in ascending pair order (CSR)."""
+def inner_incidence(pairs, inner, n_inner, inc_start_out, slot_out):
+    """Every body's incidences in the inner list, in ascending pair order (CSR).
+
+    ``inc_start_out`` (n + 1,) delimits body b's rows ``inc_start_out[b]:[b + 1]`` of the
+    per-incidence buffer; ``slot_out[k]`` (m, 2) gives the rows of pair k's two
+    incidences (as i, as j). The parallel loop writes each pair's two contributions to
+    these rows; the gather then sums each body's rows in order.
+    """
     n = inc_start_out.shape[0] - 1
     inc_start_out[:] = 0
     for u in range(n_inner):
@@ -325,9 +330,9 @@ def inner_incidence(pairs, inner, n_inner, inc_start_out, inc_out):
         k = inner[u]
         i = pairs[k, 0]
         j = pairs[k, 1]
-        inc_out[inc_start_out[i]] = 2 * k
+        slot_out[k, 0] = inc_start_out[i]
         inc_start_out[i] += 1
-        inc_out[inc_start_out[j]] = 2 * k + 1
+        slot_out[k, 1] = inc_start_out[j]
         inc_start_out[j] += 1
     for b in range(n, 0, -1):
         inc_start_out[b] = inc_start_out[b - 1]
@@ -351,7 +356,7 @@ def stepper(dim, law_pp, law_pw, periodic=False):
     def run_steps(n_steps, prime, resume, serial, dt, gravity, damping, skin, overlap_limit,
                   pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass,
                   inv_inertia, is_fixed, normal, mat_id, pos_ref, grow, hmat,
-                  pairs, img, touch, hist, fpair, tpi, tpj, inc_start, inc, params_pp,
+                  pairs, img, touch, hist, fpair, contrib, slot, inc_start, params_pp,
                   inner, n_inner, pos_inner, skin_inner,
                   wpairs, whist, wforce, wtorque, wstart, params_pw,
                   status_out, work_out):
@@ -410,7 +415,7 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                     return done
                 status_out[3] += 1  # inner refreshes, counted by the caller
                 n_inner[0] = _filter_inner(DIM, PERIODIC, pos, radius, hmat, pairs, img,
-                                           touch, hist, skin_inner, inner, inc_start, inc)
+                                           touch, hist, skin_inner, inner, inc_start, slot)
                 pos_inner[:, :] = pos
             if serial:
                 # ---- 3-5 on one thread: scatter as we go, in pair order
@@ -479,18 +484,33 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                         k, DIM, PP, PERIODIC, pos, vel, ang_vel, radius, inv_mass, mat_id,
                         hmat, pairs, img, touch, hist, params_pp, hdt, overlap_limit,
                         status_out)
+                    si = slot[k, 0]
+                    sj = slot[k, 1]
                     if not on:
+                        for a in range(contrib.shape[1]):
+                            contrib[si, a] = 0.0
+                            contrib[sj, a] = 0.0
                         continue
                     fpair[k, 0] = fx
                     fpair[k, 1] = fy
-                    tpi[k, 0] = tix
-                    tpj[k, 0] = tjx
-                    if DIM == 3:
+                    # -f added is f subtracted, bit for bit: the serial path's order
+                    contrib[si, 0] = -fx
+                    contrib[si, 1] = -fy
+                    contrib[sj, 0] = fx
+                    contrib[sj, 1] = fy
+                    if DIM == 2:
+                        contrib[si, 2] = tix
+                        contrib[sj, 2] = tjx
+                    else:
                         fpair[k, 2] = fz
-                        tpi[k, 1] = tiy
-                        tpi[k, 2] = tiz
-                        tpj[k, 1] = tjy
-                        tpj[k, 2] = tjz
+                        contrib[si, 2] = -fz
+                        contrib[sj, 2] = fz
+                        contrib[si, 3] = tix
+                        contrib[si, 4] = tiy
+                        contrib[si, 5] = tiz
+                        contrib[sj, 3] = tjx
+                        contrib[sj, 4] = tjy
+                        contrib[sj, 5] = tjz
                 # ---- 4. sphere-wall contacts, parallel over pairs
                 work = 0.0
                 for k in numba.prange(mw):
@@ -523,26 +543,15 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                     ty = 0.0
                     tz = 0.0
                     for q in range(inc_start[b], inc_start[b + 1]):
-                        e = inc[q]
-                        k = e >> 1
-                        if not touch[k]:
-                            continue
-                        if e & 1:  # b is j of pair k
-                            fx += fpair[k, 0]
-                            fy += fpair[k, 1]
-                            tx += tpj[k, 0]
-                            if DIM == 3:
-                                fz += fpair[k, 2]
-                                ty += tpj[k, 1]
-                                tz += tpj[k, 2]
+                        fx += contrib[q, 0]
+                        fy += contrib[q, 1]
+                        if DIM == 2:
+                            tx += contrib[q, 2]
                         else:
-                            fx -= fpair[k, 0]
-                            fy -= fpair[k, 1]
-                            tx += tpi[k, 0]
-                            if DIM == 3:
-                                fz -= fpair[k, 2]
-                                ty += tpi[k, 1]
-                                tz += tpi[k, 2]
+                            fz += contrib[q, 2]
+                            tx += contrib[q, 3]
+                            ty += contrib[q, 4]
+                            tz += contrib[q, 5]
                     for k in range(wstart[b], wstart[b + 1]):
                         fx += wforce[k, 0]
                         fy += wforce[k, 1]

@@ -9,7 +9,7 @@ A checkpoint is an HDF5 file holding the full state of a :class:`~dem.Simulation
     /neighbors/  pairs (m, 2) int32, img (m, d) int32, wall_pairs (mw, 2) int32,
                  pos_ref (n, d) [m]
     /box/        lo, hi (d,) [m], periodic (d,) bool (only if the scene has a box)
-    /contacts/   per sphere pair: hist (m, 3), touch (m,) uint8, fpair (m, d), tpi, tpj;
+    /contacts/   per sphere pair: hist (m, 3), touch (m,) uint8, fpair (m, d);
                  per sphere-wall pair: whist (mw, 3), wforce (mw, d), wtorque;
                  radius_ref (n,), the radii at the last neighbour build;
                  inner (n_inner,) int64 and pos_inner (n, d): the pairs the step
@@ -46,8 +46,7 @@ _F8, _I4 = np.dtype(np.float64), np.dtype(np.int32)
 _U1, _B = np.dtype(np.uint8), np.dtype(bool)
 
 #: simulation arrays, per pair and per wall pair: (name, trailing shape key, dtype)
-_PAIR_ARRAYS = (("hist", "3", _F8), ("touch", "", _U1), ("fpair", "d", _F8),
-                ("tpi", "r", _F8), ("tpj", "r", _F8))
+_PAIR_ARRAYS = (("hist", "3", _F8), ("touch", "", _U1), ("fpair", "d", _F8))
 _WALL_ARRAYS = (("whist", "3", _F8), ("wforce", "d", _F8), ("wtorque", "r", _F8))
 
 

@@ -53,7 +53,7 @@ def make_sim(dim, periodic=False, seed=1):
 def state_of(sim):
     """Every array the run advances, by name."""
     out = {k: getattr(sim.bodies, k) for k in dem.Bodies.ARRAYS}
-    for k in ("hist", "whist", "touch", "fpair", "tpi", "tpj", "wforce", "wtorque",
+    for k in ("hist", "whist", "touch", "fpair", "wforce", "wtorque",
               "wall_work", "_radius_ref"):
         if hasattr(sim, k):
             out[k] = getattr(sim, k)

@@ -13,6 +13,7 @@ the step on which the trigger fires. Observers never change the state.
 
 import numpy as np
 
+from .contact.laws import contact_energy, contact_stiffness
 from .shapes import Shape
 
 
@@ -154,12 +155,12 @@ def contact_summary(sim):
 
 
 def _stiffness(sim, bucket, ov, r_eff, ma, mb):
-    law = sim.model.kind(bucket)
     table = sim._params_pp if bucket == "pp" else sim._params_pw
     kn = np.empty(ov.size)
     kt = np.empty(ov.size)
-    for c in range(ov.size):
-        kn[c], kt[c] = law.stiffness(ov[c], r_eff[c], table[ma[c], mb[c]])
+    contact_stiffness(sim.model.kind(bucket).code, np.ascontiguousarray(ov),
+                      np.ascontiguousarray(r_eff), table, np.ascontiguousarray(ma),
+                      np.ascontiguousarray(mb), kn, kt)
     return kn, kt
 
 
@@ -254,8 +255,8 @@ def elastic_energy(sim):
         else:
             ov = b.radius[i] - np.einsum("ij,ij->i", b.pos[i] - b.pos[j], b.normal[j])
             r_eff = b.radius[i]
-        for k in np.flatnonzero(ov > 0.0):
-            e += law.energy(ov[k], r_eff[k], tab[b.mat_id[i[k]], b.mat_id[j[k]]], hist, k)
+        e += contact_energy(law.code, ov, np.ascontiguousarray(r_eff), tab, b.mat_id[i],
+                            b.mat_id[j], hist, np.flatnonzero(ov > 0.0))
     return float(e)
 
 

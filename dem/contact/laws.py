@@ -125,6 +125,32 @@ def energy_hertz_mindlin(ov, r_eff, p, hist, k):
     return 8.0 / 15.0 * p[0] * a * ov * ov + 0.5 * 8.0 * p[1] * a * s2
 
 
+# --------------------------------------------------------------------------- batches (observers)
+@kernel
+def contact_stiffness(code, ov, r_eff, p, ma, mb, kn_out, kt_out):
+    """Tangent stiffnesses [N/m] of many contacts of law ``code`` (observers, not steps)."""
+    for c in range(ov.shape[0]):
+        if code == 0:
+            kn, kt = stiffness_linear(ov[c], r_eff[c], p[ma[c], mb[c]])
+        else:
+            kn, kt = stiffness_hertz_mindlin(ov[c], r_eff[c], p[ma[c], mb[c]])
+        kn_out[c] = kn
+        kt_out[c] = kt
+
+
+@kernel
+def contact_energy(code, ov, r_eff, p, ma, mb, hist, rows):
+    """Elastic energy [J] of the contacts ``rows`` (with ``ov[c]`` > 0) of law ``code``."""
+    e = 0.0
+    for c in range(rows.shape[0]):
+        k = rows[c]
+        if code == 0:
+            e += energy_linear(ov[k], r_eff[k], p[ma[k], mb[k]], hist, k)
+        else:
+            e += energy_hertz_mindlin(ov[k], r_eff[k], p[ma[k], mb[k]], hist, k)
+    return e
+
+
 # --------------------------------------------------------------------------- parameter objects
 def _check(name, value, lo=0.0, strict=False):
     value = float(value)
@@ -248,7 +274,7 @@ class HertzMindlin(Law):
         self.e_star = 1.0 / ((1 - n1**2) / e1 + (1 - n2**2) / e2)
         self.g_star = 1.0 / (2 * (2 - n1) * (1 + n1) / e1 + 2 * (2 - n2) * (1 + n2) / e2)
         self.beta = math.log(e) / math.sqrt(math.log(e) ** 2 + math.pi**2)
-        self.overlap_ref = float(overlap_ref)
+        self.overlap_ref = _check("overlap_ref", overlap_ref, strict=True)
 
     def row(self):
         return np.array([self.e_star, self.g_star, self.beta, self.mu])

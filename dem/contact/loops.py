@@ -455,6 +455,8 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                         k, DIM, PW, pos, vel, ang_vel, radius, inv_mass, mat_id, normal,
                         wpairs, whist, params_pw, hdt, overlap_limit, status_out)
                     if not on:
+                        for a in range(DIM):  # wall reactions sum every wall pair
+                            wforce[k, a] = 0.0
                         continue
                     i = wpairs[k, 0]
                     wforce[k, 0] = fx

@@ -68,6 +68,9 @@ from pathlib import Path
 
 import numpy as np
 
+from .packing import lattice_packing, radii, random_packing, read_packing
+from .text import fmt as _fmt, reason as _reason, show as _show, tname as _tname
+
 log = logging.getLogger(__name__)
 
 __all__ = ["SCHEMA", "Key", "OutputSettings", "Range", "SceneError", "Section",
@@ -457,18 +460,21 @@ def build_bodies(scene):
     ctx.dim = scene["simulation"]["dim"]
     p = scene["particles"]
     gen = p["generator"]
-    if gen == "file":
-        pos, radius = _read_particle_file(ctx, p["file"])
-    else:
-        rng = np.random.default_rng(p["seed"])
-        lo, hi = np.array(p["lo"]), np.array(p["hi"])
-        n = p["count"]
-        r = p["radius"]
-        if gen == "lattice":
-            pos, radius = _lattice(ctx, lo, hi, r, p["spacing"], n, rng)
+    try:
+        if gen == "file":
+            pos, radius = read_packing(p["file"], ctx.dim)
         else:
-            radius = _radii(r, n, rng)
-            pos = _random_packing(ctx, lo, hi, radius, rng)
+            rng = np.random.default_rng(p["seed"])
+            lo, hi = np.array(p["lo"]), np.array(p["hi"])
+            n = p["count"]
+            r = p["radius"]
+            if gen == "lattice":
+                pos, radius = lattice_packing(lo, hi, r, p["spacing"], n, rng)
+            else:
+                radius = radii(r, n, rng)
+                pos = random_packing(lo, hi, radius, rng)
+    except ValueError as exc:
+        ctx.fail(str(exc), "[particles]")
     bodies = Bodies.spheres(pos, radius=radius, density=p["density"], vel=p["velocity"])
     for i, w in enumerate(scene["walls"]):
         point, normal = np.array(w["point"]), np.array(w["normal"])
@@ -533,150 +539,7 @@ def build_simulation(scene):
     return sim, output
 
 
-def _radii(r, n, rng):
-    if isinstance(r, list):
-        return rng.uniform(r[0], r[1], n)
-    return np.full(n, float(r))
-
-
-def _lattice(ctx, lo, hi, r, spacing, count, rng):
-    r_max = max(r) if isinstance(r, list) else r
-    if spacing is None:
-        spacing = 2.1 * r_max
-    elif spacing < 2.0 * r_max:
-        ctx.fail(f"spacing must be >= 2 x the largest radius ({_fmt(2 * r_max)} m), "
-                 f"got {_fmt(spacing)}", "[particles]")
-    n_axis = np.floor((hi - lo - 2.0 * r_max) / spacing * (1 + 1e-12)).astype(int) + 1
-    if np.any(n_axis < 1):
-        ctx.fail(f"box lo..hi is too small for one particle of radius {_fmt(r_max)} m",
-                 "[particles]")
-    sites = int(np.prod(n_axis))
-    if count is None:
-        if sites > 10**7:
-            ctx.fail(f"the box holds {sites} lattice sites; set count", "[particles]")
-        count = sites
-    elif count > sites:
-        ctx.fail(f"count = {count} exceeds the {sites} lattice sites in the box "
-                 f"({' x '.join(map(str, n_axis))} at spacing {_fmt(spacing)} m)",
-                 "[particles]")
-    # x varies fastest, the last axis slowest: layers fill from lo upwards
-    idx = np.stack(np.unravel_index(np.arange(count), n_axis[::-1])[::-1], axis=1)
-    return lo + r_max + spacing * idx, _radii(r, count, rng)
-
-
-def _random_packing(ctx, lo, hi, radius, rng, attempts_per_particle=200):
-    """Random sequential addition of non-overlapping spheres, largest first."""
-    n, d = radius.shape[0], lo.shape[0]
-    order = np.argsort(-radius, kind="stable")
-    radius = radius[order]
-    cell = 2.0 * radius[0]
-    pos = np.empty((n, d))
-    grid = {}
-    offsets = [tuple(o) for o in np.ndindex(*(3,) * d)]
-    budget = attempts_per_particle * n + 1000
-    placed = 0
-    while placed < n:
-        r = radius[placed]
-        if np.any(hi - lo < 2.0 * r):
-            ctx.fail(f"box lo..hi is too small for one particle of radius {_fmt(r)} m",
-                     "[particles]")
-        batch = rng.uniform(lo + r, hi - r, (64, d))
-        for x in batch:
-            budget -= 1
-            c = tuple(int(v) for v in np.floor(x / cell))
-            near = [j for o in offsets
-                    for j in grid.get(tuple(a + b - 1 for a, b in zip(c, o)), ())]
-            if near:
-                dist = np.linalg.norm(pos[near] - x, axis=1)
-                if np.any(dist < radius[near] + r):
-                    continue
-            pos[placed] = x
-            grid.setdefault(c, []).append(placed)
-            placed += 1
-            break
-        if budget <= 0 and placed < n:
-            ctx.fail(f"could place only {placed} of count = {n} non-overlapping "
-                     f"particles in the box; enlarge lo..hi or lower count",
-                     "[particles]")
-    out = np.empty_like(pos)
-    out[order] = pos
-    return out
-
-
-def _read_particle_file(ctx, path):
-    where = "[particles]"
-    try:
-        with open(path, encoding="utf-8") as f:
-            rows = np.loadtxt(f, ndmin=2, comments="#")
-    except OSError as exc:
-        ctx.fail(f"file: cannot read {path}: {_reason(exc)}", where)
-    except ValueError as exc:
-        ctx.fail(f"file: {path}: {_reason(exc)}", where)
-    ncol = ctx.dim + 1
-    if rows.shape[0] == 0:
-        ctx.fail(f"file: {path} holds no particles", where)
-    if rows.shape[1] != ncol:
-        names = "x y z r" if ctx.dim == 3 else "x y r"
-        ctx.fail(f"file: {path} must have {ncol} columns ({names}) for "
-                 f"dim = {ctx.dim}, got {rows.shape[1]}", where)
-    bad = ~np.all(np.isfinite(rows), axis=1) | (rows[:, -1] <= 0.0)
-    if bad.any():
-        k = int(np.argmax(bad))
-        ctx.fail(f"file: {path}: particle {k} needs finite values and radius > 0, "
-                 f"got {_show(rows[k].tolist())}", where)
-    pos, radius = np.ascontiguousarray(rows[:, :-1]), np.ascontiguousarray(rows[:, -1])
-    pair = _first_overlap(pos, radius)
-    if pair is not None:
-        i, j, ov = pair
-        ctx.fail(f"file: {path}: particles {i} and {j} (0-based rows) overlap by "
-                 f"{_fmt(ov)} m", where)
-    return pos, radius
-
-
-def _first_overlap(pos, radius):
-    """The overlapping pair (i, j, overlap [m]) with the smallest (i, j), or None."""
-    from scipy.spatial import cKDTree
-
-    if pos.shape[0] < 2:
-        return None
-    pairs = cKDTree(pos).query_pairs(2.0 * float(radius.max()), output_type="ndarray")
-    if pairs.shape[0] == 0:
-        return None
-    i, j = pairs.min(axis=1), pairs.max(axis=1)
-    ov = radius[i] + radius[j] - np.linalg.norm(pos[i] - pos[j], axis=1)
-    hit = ov > 1e-12 * np.minimum(radius[i], radius[j])
-    if not hit.any():
-        return None
-    i, j, ov = i[hit], j[hit], ov[hit]
-    k = np.lexsort((j, i))[0]
-    return int(i[k]), int(j[k]), float(ov[k])
-
-
 # --------------------------------------------------------------------------- text
-def _fmt(x):
-    return "" if x is None else f"{x:g}" if isinstance(x, float) else str(x)
-
-
-def _show(value):
-    if isinstance(value, str):
-        return f'"{value}" (string)'
-    if isinstance(value, bool):
-        return f"{str(value).lower()} (boolean)"
-    if isinstance(value, dict):
-        return "a table"
-    if isinstance(value, list):
-        return "[" + ", ".join(_show(v).split(" (")[0] for v in value) + "]"
-    if isinstance(value, (int, float)):
-        return _fmt(value)
-    return f"{value} ({_tname(value)})"
-
-
-def _tname(value):
-    names = {bool: "boolean", int: "integer", float: "float", str: "string",
-             list: "array", dict: "table"}
-    return names.get(type(value), type(value).__name__)
-
-
 def _toml(value):
     if isinstance(value, str):
         return f'"{value}"'
@@ -691,10 +554,6 @@ def _alternatives(options):
 def _suggest(name, known):
     close = difflib.get_close_matches(name, list(known), n=1)
     return f" (did you mean '{close[0]}'?)" if close else ""
-
-
-def _reason(exc):
-    return getattr(exc, "strerror", None) or str(exc) or type(exc).__name__
 
 
 def _describe(spec):

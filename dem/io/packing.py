@@ -1,0 +1,137 @@
+"""Particle packings for scenes: lattices, random loose clouds, files.
+
+Plain functions of arrays (SI units); a problem is a ``ValueError`` with a one-line
+message. :mod:`dem.io.scene` turns these messages into scene-file errors.
+"""
+
+import numpy as np
+
+from .text import fmt as _fmt, reason as _reason, show as _show
+
+
+def radii(r, n, rng):
+    """``n`` radii [m]: ``r`` itself, or uniform in ``[r[0], r[1]]`` when ``r`` is a pair."""
+    if isinstance(r, list):
+        return rng.uniform(r[0], r[1], n)
+    return np.full(n, float(r))
+
+
+def lattice_packing(lo, hi, r, spacing, count, rng):
+    """Spheres on a simple cubic (square) lattice filling the box ``lo``..``hi`` [m].
+
+    ``count`` None fills the box; x varies fastest. Raises ValueError if they do not fit.
+    """
+    r_max = max(r) if isinstance(r, list) else r
+    if spacing is None:
+        spacing = 2.1 * r_max
+    elif spacing < 2.0 * r_max:
+        raise ValueError(f"spacing must be >= 2 x the largest radius ({_fmt(2 * r_max)} m), "
+                 f"got {_fmt(spacing)}")
+    n_axis = np.floor((hi - lo - 2.0 * r_max) / spacing * (1 + 1e-12)).astype(int) + 1
+    if np.any(n_axis < 1):
+        raise ValueError(f"box lo..hi is too small for one particle of radius {_fmt(r_max)} m")
+    sites = int(np.prod(n_axis))
+    if count is None:
+        if sites > 10**7:
+            raise ValueError(f"the box holds {sites} lattice sites; set count")
+        count = sites
+    elif count > sites:
+        raise ValueError(f"count = {count} exceeds the {sites} lattice sites in the box "
+                 f"({' x '.join(map(str, n_axis))} at spacing {_fmt(spacing)} m)")
+    # x varies fastest, the last axis slowest: layers fill from lo upwards
+    idx = np.stack(np.unravel_index(np.arange(count), n_axis[::-1])[::-1], axis=1)
+    return lo + r_max + spacing * idx, radii(r, count, rng)
+
+
+def random_packing(lo, hi, radius, rng, attempts_per_particle=200):
+    """Random sequential addition of non-overlapping spheres, largest first.
+
+    Positions (n, d) [m] of spheres of ``radius`` (n,) inside the box ``lo``..``hi``;
+    raises ValueError when the box cannot take them.
+    """
+    n, d = radius.shape[0], lo.shape[0]
+    order = np.argsort(-radius, kind="stable")
+    radius = radius[order]
+    cell = 2.0 * radius[0]
+    pos = np.empty((n, d))
+    grid = {}
+    offsets = [tuple(o) for o in np.ndindex(*(3,) * d)]
+    budget = attempts_per_particle * n + 1000
+    placed = 0
+    while placed < n:
+        r = radius[placed]
+        if np.any(hi - lo < 2.0 * r):
+            raise ValueError(f"box lo..hi is too small for one particle of radius {_fmt(r)} m")
+        batch = rng.uniform(lo + r, hi - r, (64, d))
+        for x in batch:
+            budget -= 1
+            c = tuple(int(v) for v in np.floor(x / cell))
+            near = [j for o in offsets
+                    for j in grid.get(tuple(a + b - 1 for a, b in zip(c, o)), ())]
+            if near:
+                dist = np.linalg.norm(pos[near] - x, axis=1)
+                if np.any(dist < radius[near] + r):
+                    continue
+            pos[placed] = x
+            grid.setdefault(c, []).append(placed)
+            placed += 1
+            break
+        if budget <= 0 and placed < n:
+            raise ValueError(f"could place only {placed} of count = {n} non-overlapping "
+                     f"particles in the box; enlarge lo..hi or lower count")
+    out = np.empty_like(pos)
+    out[order] = pos
+    return out
+
+
+def read_packing(path, dim):
+    """Positions (n, dim) and radii (n,) [m] from rows ``x y [z] r`` of a text file.
+
+    Raises ValueError (message starting with ``file:``) for an unreadable file, wrong
+    columns, non-finite values or overlapping spheres (naming the first pair).
+    """
+    try:
+        with open(path, encoding="utf-8") as f:
+            rows = np.loadtxt(f, ndmin=2, comments="#")
+    except OSError as exc:
+        raise ValueError(f"file: cannot read {path}: {_reason(exc)}")
+    except ValueError as exc:
+        raise ValueError(f"file: {path}: {_reason(exc)}")
+    ncol = dim + 1
+    if rows.shape[0] == 0:
+        raise ValueError(f"file: {path} holds no particles")
+    if rows.shape[1] != ncol:
+        names = "x y z r" if dim == 3 else "x y r"
+        raise ValueError(f"file: {path} must have {ncol} columns ({names}) for "
+                 f"dim = {dim}, got {rows.shape[1]}")
+    bad = ~np.all(np.isfinite(rows), axis=1) | (rows[:, -1] <= 0.0)
+    if bad.any():
+        k = int(np.argmax(bad))
+        raise ValueError(f"file: {path}: particle {k} needs finite values and radius > 0, "
+                 f"got {_show(rows[k].tolist())}")
+    pos, radius = np.ascontiguousarray(rows[:, :-1]), np.ascontiguousarray(rows[:, -1])
+    pair = first_overlap(pos, radius)
+    if pair is not None:
+        i, j, ov = pair
+        raise ValueError(f"file: {path}: particles {i} and {j} (0-based rows) overlap by "
+                 f"{_fmt(ov)} m")
+    return pos, radius
+
+
+def first_overlap(pos, radius):
+    """The overlapping pair (i, j, overlap [m]) with the smallest (i, j), or None."""
+    from scipy.spatial import cKDTree
+
+    if pos.shape[0] < 2:
+        return None
+    pairs = cKDTree(pos).query_pairs(2.0 * float(radius.max()), output_type="ndarray")
+    if pairs.shape[0] == 0:
+        return None
+    i, j = pairs.min(axis=1), pairs.max(axis=1)
+    ov = radius[i] + radius[j] - np.linalg.norm(pos[i] - pos[j], axis=1)
+    hit = ov > 1e-12 * np.minimum(radius[i], radius[j])
+    if not hit.any():
+        return None
+    i, j, ov = i[hit], j[hit], ov[hit]
+    k = np.lexsort((j, i))[0]
+    return int(i[k]), int(j[k]), float(ov[k])

@@ -8,7 +8,7 @@ import numpy as np
 
 from .contact.loops import NONFINITE, OK, OVERLAP, REBUILD, inner_incidence, stepper
 from .contact.model import ContactModel
-from .neighbors import Box, NeighborList, carry_history, incidence
+from .neighbors import NeighborList, carry_history, incidence
 from .shapes import Shape
 
 log = logging.getLogger(__name__)
@@ -122,7 +122,8 @@ class Simulation:
         self.controllers = list(controllers)
         self.state_objects = list(state_objects)
         if threads is None:
-            threads = numba.config.NUMBA_NUM_THREADS if bodies.n >= PARALLEL_MIN_BODIES else 1
+            big = bodies.n >= PARALLEL_MIN_BODIES
+            threads = numba.config.NUMBA_NUM_THREADS if big else 1
         self.threads = max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS))
         self.step = 0
         self.time = 0.0
@@ -143,7 +144,8 @@ class Simulation:
         with np.errstate(divide="ignore"):
             self._inv_mass = np.where(b.is_fixed, 0.0, 1.0 / b.mass)
             self._inv_inertia = np.where(b.is_fixed[:, None], 0.0, 1.0 / b.inertia)
-        self._hmat = self.box.matrix() if self.box is not None else np.zeros((self.dim, self.dim))
+        d = self.dim
+        self._hmat = self.box.matrix() if self.box is not None else np.zeros((d, d))
         self._fixed = b.is_fixed.astype(np.uint8)
 
     def _rebuild(self):
@@ -178,7 +180,8 @@ class Simulation:
         self._inner = np.zeros(nl.pairs.shape[0], np.int64)
         self._n_inner = np.full(1, -1, np.int64)  # made by the next force evaluation
         self._pos_inner = self.bodies.pos.copy()
-        incidence(nl.wall_pairs, n, 0, self._wstart, np.zeros(nl.wall_pairs.shape[0], np.int64))
+        incidence(nl.wall_pairs, n, 0, self._wstart,
+                  np.zeros(nl.wall_pairs.shape[0], np.int64))
 
     def _restore_inner(self, n_inner, inner, pos_inner):
         """Set the inner contact list (checkpoint restart); -1 remakes it next step."""
@@ -192,14 +195,15 @@ class Simulation:
     def _call(self, n_steps, prime, resume=False):
         b, nl = self.bodies, self.neighbors
         return self._kernel(
-            n_steps, prime, resume, numba.get_num_threads() == 1, self.dt, self.gravity, self.damping, nl.skin,
-            self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel, b.force, b.torque, b.radius,
-            b.mass, self._inv_mass, self._inv_inertia, self._fixed, b.normal, b.mat_id,
-            nl.pos_ref, self._grow(), self._hmat, nl.pairs, nl.img, self.touch, self.hist,
-            self.fpair, self._contrib, self._slot, self._inc_start, self._params_pp,
-            self._inner, self._n_inner, self._pos_inner, INNER_SKIN * nl.skin,
-            nl.wall_pairs, self.whist, self.wforce, self.wtorque, self._wstart,
-            self._params_pw, self._status, self.wall_work)
+            n_steps, prime, resume, numba.get_num_threads() == 1, self.dt, self.gravity,
+            self.damping, nl.skin, self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel,
+            b.force, b.torque, b.radius, b.mass, self._inv_mass, self._inv_inertia,
+            self._fixed, b.normal, b.mat_id, nl.pos_ref, self._grow(), self._hmat,
+            nl.pairs, nl.img, self.touch, self.hist, self.fpair, self._contrib,
+            self._slot, self._inc_start, self._params_pp, self._inner, self._n_inner,
+            self._pos_inner, INNER_SKIN * nl.skin, nl.wall_pairs, self.whist,
+            self.wforce, self.wtorque, self._wstart, self._params_pw, self._status,
+            self.wall_work)
 
     def prime(self):
         """Build the neighbour lists and the forces of the current state (idempotent)."""

@@ -230,33 +230,29 @@ def _drift_body(b, dim, serial, dt, half, pos, vel, rot, ang_vel, force, torque,
 @kernel(inline=True)
 def _finish_body(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, mass,
                  inv_mass, inv_inertia, is_fixed, vel, ang_vel, force, torque, status_out):
-    """Add gravity and local damping to body b's contact force, store it, half kick."""
-    if is_fixed[b]:  # fixed bodies keep the contact force on them, nothing else
-        force[b, 0] = fx
-        force[b, 1] = fy
-        torque[b, 0] = tx
+    """Add gravity and local damping to body b's contact force, store it, half kick.
+
+    A fixed body keeps the bare contact force on it and does not move.
+    """
+    free = not is_fixed[b]
+    if free:
+        mb = mass[b]
+        fx += mb * gravity[0]
+        fy += mb * gravity[1]
         if dim == 3:
-            force[b, 2] = fz
-            torque[b, 1] = ty
-            torque[b, 2] = tz
-        return
-    mb = mass[b]
-    fx += mb * gravity[0]
-    fy += mb * gravity[1]
-    if dim == 3:
-        fz += mb * gravity[2]
-    if damping > 0.0:  # Cundall local damping: oppose the velocity's sign
-        fx -= damping * abs(fx) * np.sign(vel[b, 0])
-        fy -= damping * abs(fy) * np.sign(vel[b, 1])
-        tx -= damping * abs(tx) * np.sign(ang_vel[b, 0])
-        if dim == 3:
-            fz -= damping * abs(fz) * np.sign(vel[b, 2])
-            ty -= damping * abs(ty) * np.sign(ang_vel[b, 1])
-            tz -= damping * abs(tz) * np.sign(ang_vel[b, 2])
-    if not (math.isfinite(fx) and math.isfinite(fy) and math.isfinite(fz)
-            and math.isfinite(tx) and math.isfinite(ty) and math.isfinite(tz)):
-        status_out[0] = NONFINITE
-        status_out[1] = b
+            fz += mb * gravity[2]
+        if damping > 0.0:  # Cundall local damping: oppose the velocity's sign
+            fx -= damping * abs(fx) * np.sign(vel[b, 0])
+            fy -= damping * abs(fy) * np.sign(vel[b, 1])
+            tx -= damping * abs(tx) * np.sign(ang_vel[b, 0])
+            if dim == 3:
+                fz -= damping * abs(fz) * np.sign(vel[b, 2])
+                ty -= damping * abs(ty) * np.sign(ang_vel[b, 1])
+                tz -= damping * abs(tz) * np.sign(ang_vel[b, 2])
+        if not (math.isfinite(fx) and math.isfinite(fy) and math.isfinite(fz)
+                and math.isfinite(tx) and math.isfinite(ty) and math.isfinite(tz)):
+            status_out[0] = NONFINITE
+            status_out[1] = b
     force[b, 0] = fx
     force[b, 1] = fy
     torque[b, 0] = tx
@@ -264,7 +260,7 @@ def _finish_body(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, m
         force[b, 2] = fz
         torque[b, 1] = ty
         torque[b, 2] = tz
-    if kick:
+    if kick and free:
         vel[b, 0] += half * fx * inv_mass[b]
         vel[b, 1] += half * fy * inv_mass[b]
         ang_vel[b, 0] += half * tx * inv_inertia[b, 0]
@@ -371,9 +367,7 @@ def stepper(dim, law_pp, law_pw, periodic=False):
         accumulates the work of walls on bodies [J].
         """
         n = pos.shape[0]
-        m = pairs.shape[0]
         mw = wpairs.shape[0]
-        nr = torque.shape[1]
         status_out[0] = OK
         status_out[3] = 0
         done = 0

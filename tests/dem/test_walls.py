@@ -14,7 +14,6 @@ def test_wall_reaction_balances_and_vanishes_after_rebound(dim):
     bodies = dem.Bodies.spheres([0.0101 * up], radius=0.01, density=2500.0, vel=[-0.2 * up])
     w = bodies.add_plane(np.zeros(dim), up)
     law = dem.LinearSpring(kn=1e5, kt=2e4, mu=0.3, restitution=0.7)
-    seen = []
     probe = dem.Record(lambda s: (s.wall_forces()[w] @ up, s.bodies.force[0] @ up), every=1)
     sim = dem.Simulation(bodies, law, observers=[probe], threads=1)
     sim.run(400)

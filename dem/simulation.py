@@ -6,7 +6,7 @@ import math
 import numba
 import numpy as np
 
-from .contact.loops import NONFINITE, OK, OVERLAP, REBUILD, inner_incidence, stepper
+from .contact.loops import N_BLOCKS, NONFINITE, OK, OVERLAP, REBUILD, inner_index, stepper
 from .contact.model import ContactModel
 from .neighbors import NeighborList, carry_history, incidence
 from .shapes import Shape
@@ -177,20 +177,22 @@ class Simulation:
         self._slot = np.zeros((m, 2), np.int64)
         self._contrib = np.zeros((2 * m, self.dim + self.bodies.n_rot))
         self._wstart = np.zeros(n + 1, np.int64)
+        self._blk_start = np.zeros(N_BLOCKS + 1, np.int64)
         self._inner = np.zeros(nl.pairs.shape[0], np.int64)
-        self._n_inner = np.full(1, -1, np.int64)  # made by the next force evaluation
+        # (total, internal) pair counts; made by the next force evaluation
+        self._n_inner = np.full(2, -1, np.int64)
         self._pos_inner = self.bodies.pos.copy()
         incidence(nl.wall_pairs, n, 0, self._wstart,
                   np.zeros(nl.wall_pairs.shape[0], np.int64))
 
-    def _restore_inner(self, n_inner, inner, pos_inner):
+    def _restore_inner(self, n_inner, n_internal, inner, pos_inner):
         """Set the inner contact list (checkpoint restart); -1 remakes it next step."""
-        self._n_inner[0] = n_inner
+        self._n_inner[:] = n_inner, n_internal
         if n_inner >= 0:
             self._inner[:n_inner] = inner
             self._pos_inner[:] = pos_inner
-            inner_incidence(self.neighbors.pairs, self._inner, n_inner, self._inc_start,
-                            self._slot)
+            inner_index(self.neighbors.pairs, self._inner, self._n_inner, self._blk_start,
+                        self._inc_start, self._slot)
 
     def _call(self, n_steps, prime, resume=False):
         b, nl = self.bodies, self.neighbors
@@ -200,7 +202,8 @@ class Simulation:
             b.force, b.torque, b.radius, b.mass, self._inv_mass, self._inv_inertia,
             self._fixed, b.normal, b.mat_id, nl.pos_ref, self._grow(), self._hmat,
             nl.pairs, nl.img, self.touch, self.hist, self.fpair, self._contrib,
-            self._slot, self._inc_start, self._params_pp, self._inner, self._n_inner,
+            self._slot, self._inc_start, self._blk_start, self._params_pp, self._inner,
+            self._n_inner,
             self._pos_inner, INNER_SKIN * nl.skin, nl.wall_pairs, self.whist,
             self.wforce, self.wtorque, self._wstart, self._params_pw, self._status,
             self.wall_work)

@@ -19,14 +19,17 @@ One step, in this order (the ``Simulation.run`` contract):
 4. sphere-wall contacts, likewise;
 5. per body: sum of contact forces, gravity, local damping, second half kick.
 
-Summation order is fixed, so results do not depend on the number of threads. On one
-thread, 3 and 4 add each contact's force to its bodies as they go (pair order). On
-several threads, 3 and 4 run in parallel over pairs and store per-pair results, and 5
-gathers them per body in parallel, visiting each body's pairs in ascending pair order
-(``inc``: a body's incidences in the inner list, sorted by pair index, made with the
-inner list), which is the same order and
-therefore the same floating-point sum. ``touch[k]`` marks the pairs in contact at the
-last force evaluation.
+Summation order is fixed, so results do not depend on the number of threads. Bodies
+fall into ``N_BLOCKS`` blocks of consecutive rows (a fixed number, whatever the thread
+count); a contact inside one block is *internal*, others are *cross*. Every body sums
+its internal contacts in pair order, then its cross contacts in pair order, then its
+walls. On one thread, 3 and 4 add each contact to its bodies as they go, in that order.
+On several threads, the internal contacts run in parallel over blocks, each block adding
+into its own bodies; the cross contacts run in parallel over pairs and write their two
+contributions to rows laid out body by body in pair order; 5 adds each body's rows and
+walls in parallel. The sums are the same, bit for bit. With bodies in spatial order
+(``Bodies.sort_spatially``) few contacts cross a block boundary. ``touch[k]`` marks the
+pairs in contact at the last force evaluation.
 """
 
 import math
@@ -174,12 +177,11 @@ def _sphere_wall(k, dim, code, pos, vel, ang_vel, radius, inv_mass, mat_id, norm
 
 
 @kernel(inline=True)
-def _drift_body(b, dim, serial, dt, half, pos, vel, rot, ang_vel, force, torque, inv_mass,
+def _drift_body(b, dim, dt, half, pos, vel, rot, ang_vel, force, torque, inv_mass,
                 inv_inertia, is_fixed, pos_inner):
     """Half kick and drift of body b (fixed bodies: drift at their velocity).
 
-    Zeroes b's force and torque when ``serial`` (the one-thread force loop adds into
-    them). Returns the squared displacement [m^2] since the inner list was made.
+    Zeroes b's force and torque: the contact loops add into them. Returns the squared displacement [m^2] since the inner list was made.
     """
     s2 = 0.0
     if is_fixed[b]:
@@ -187,33 +189,28 @@ def _drift_body(b, dim, serial, dt, half, pos, vel, rot, ang_vel, force, torque,
             pos[b, a] += dt * vel[b, a]
             dx = pos[b, a] - pos_inner[b, a]
             s2 += dx * dx
-            if serial:
-                force[b, a] = 0.0
-        if serial:
-            for a in range(torque.shape[1]):
-                torque[b, a] = 0.0
+            force[b, a] = 0.0
+        for a in range(torque.shape[1]):
+            torque[b, a] = 0.0
         return s2
     for a in range(dim):
         vel[b, a] += half * force[b, a] * inv_mass[b]
         pos[b, a] += dt * vel[b, a]
         dx = pos[b, a] - pos_inner[b, a]
         s2 += dx * dx
-        if serial:
-            force[b, a] = 0.0
+        force[b, a] = 0.0
     if dim == 2:
         ang_vel[b, 0] += half * torque[b, 0] * inv_inertia[b, 0]
         rot[b, 0] += dt * ang_vel[b, 0]
-        if serial:
-            torque[b, 0] = 0.0
+        torque[b, 0] = 0.0
     else:
         wx = ang_vel[b, 0] + half * torque[b, 0] * inv_inertia[b, 0]
         wy = ang_vel[b, 1] + half * torque[b, 1] * inv_inertia[b, 1]
         wz = ang_vel[b, 2] + half * torque[b, 2] * inv_inertia[b, 2]
         ang_vel[b, 0], ang_vel[b, 1], ang_vel[b, 2] = wx, wy, wz
-        if serial:
-            torque[b, 0] = 0.0
-            torque[b, 1] = 0.0
-            torque[b, 2] = 0.0
+        torque[b, 0] = 0.0
+        torque[b, 1] = 0.0
+        torque[b, 2] = 0.0
         # rotation by |w| dt about w: r = (1 - |h|^2/2, h), h = w dt/2, is the
         # exponential map to O(|h|^3) and a unit quaternion to O(|h|^4) without a
         # square root; quaternions are renormalised at every neighbour rebuild
@@ -270,18 +267,27 @@ def _finish_body(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, m
             ang_vel[b, 2] += half * tz * inv_inertia[b, 2]
 
 
+#: bodies are split into this many blocks of consecutive rows; a pair within one block
+#: is "internal", others "cross". Fixed, so that the summation order (and so every bit
+#: of the result) does not depend on the thread count.
+N_BLOCKS = 16
+
+
 @kernel
 def _filter_inner(dim, periodic, pos, radius, hmat, pairs, img, touch, hist, skin_inner,
-                  inner_out, inc_start_out, slot_out):
-    """Indices (ascending) of the Verlet pairs closer than ``r_i + r_j + skin_inner``.
+                  inner_out, n_inner_out, blk_start_out, inc_start_out, slot_out):
+    """The Verlet pairs closer than ``r_i + r_j + skin_inner``: the inner list.
 
     The step loop evaluates only these until a body has moved ``skin_inner / 2``: most
     Verlet pairs are not touching, and testing them every step costs more than this
     pass every few steps. A pair left out that was touching has opened: its history
-    is reset here. Also makes the incidence rows of the parallel gather
-    (:func:`inner_incidence`). Returns the count.
+    is reset here. ``inner_out`` receives the internal pairs (both bodies in one block)
+    in ascending order, then the cross pairs in ascending order; ``n_inner_out`` (2,)
+    the total and internal counts. Then :func:`inner_index`.
     """
-    q = 0
+    n = pos.shape[0]
+    n_int = 0
+    n_cross = 0
     for k in range(pairs.shape[0]):
         i = pairs[k, 0]
         j = pairs[k, 1]
@@ -294,35 +300,49 @@ def _filter_inner(dim, periodic, pos, radius, hmat, pairs, img, touch, hist, ski
             r2 += dx * dx
         cut = radius[i] + radius[j] + skin_inner
         if r2 < cut * cut:
-            inner_out[q] = k
-            q += 1
+            if (i * N_BLOCKS) // n == (j * N_BLOCKS) // n:
+                inner_out[n_int] = k
+                n_int += 1
+            else:
+                slot_out[n_cross, 0] = k  # scratch until inner_index
+                n_cross += 1
         elif touch[k]:
             touch[k] = 0
             hist[k, 0] = 0.0
             hist[k, 1] = 0.0
             hist[k, 2] = 0.0
-    inner_incidence(pairs, inner_out, q, inc_start_out, slot_out)
-    return q
+    for u in range(n_cross):
+        inner_out[n_int + u] = slot_out[u, 0]
+    n_inner_out[0] = n_int + n_cross
+    n_inner_out[1] = n_int
+    inner_index(pairs, inner_out, n_inner_out, blk_start_out, inc_start_out, slot_out)
 
 
 @kernel
-def inner_incidence(pairs, inner, n_inner, inc_start_out, slot_out):
-    """Every body's incidences in the inner list, in ascending pair order (CSR).
+def inner_index(pairs, inner, n_inner, blk_start_out, inc_start_out, slot_out):
+    """Where each block's internal pairs start, and the cross pairs' incidence rows.
 
-    ``inc_start_out`` (n + 1,) delimits body b's rows ``inc_start_out[b]:[b + 1]`` of the
-    per-incidence buffer; ``slot_out[k]`` (m, 2) gives the rows of pair k's two
-    incidences (as i, as j). The parallel loop writes each pair's two contributions to
-    these rows; the gather then sums each body's rows in order.
+    ``blk_start_out`` (N_BLOCKS + 1,) delimits block b's internal pairs in ``inner``.
+    ``inc_start_out`` (n + 1,) delimits body b's rows of the per-incidence buffer for
+    cross pairs, in ascending pair order; ``slot_out[k]`` gives the rows of cross pair
+    k's two incidences (as i, as j).
     """
     n = inc_start_out.shape[0] - 1
+    n_tot, n_int = n_inner[0], n_inner[1]
+    blk_start_out[:] = n_int
+    for q in range(n_int - 1, -1, -1):  # internal pairs come grouped by block
+        blk_start_out[(pairs[inner[q], 0] * N_BLOCKS) // n] = q
+    for b in range(N_BLOCKS - 1, -1, -1):  # empty blocks start where the next one does
+        if blk_start_out[b] > blk_start_out[b + 1]:
+            blk_start_out[b] = blk_start_out[b + 1]
     inc_start_out[:] = 0
-    for u in range(n_inner):
+    for u in range(n_int, n_tot):
         k = inner[u]
         inc_start_out[pairs[k, 0] + 1] += 1
         inc_start_out[pairs[k, 1] + 1] += 1
     for b in range(n):
         inc_start_out[b + 1] += inc_start_out[b]
-    for u in range(n_inner):  # inc_start_out[b] is b's fill pointer here, restored below
+    for u in range(n_int, n_tot):  # inc_start_out[b]: b's fill pointer, restored below
         k = inner[u]
         i = pairs[k, 0]
         j = pairs[k, 1]
@@ -333,6 +353,28 @@ def inner_incidence(pairs, inner, n_inner, inc_start_out, slot_out):
     for b in range(n, 0, -1):
         inc_start_out[b] = inc_start_out[b - 1]
     inc_start_out[0] = 0
+
+
+@kernel(inline=True)
+def _scatter_pair(k, dim, i, j, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, fpair, force,
+                  torque):
+    """Add pair k's force (on j; i gets the opposite) and torques to its two bodies."""
+    fpair[k, 0] = fx
+    fpair[k, 1] = fy
+    force[i, 0] -= fx
+    force[i, 1] -= fy
+    force[j, 0] += fx
+    force[j, 1] += fy
+    torque[i, 0] += tix
+    torque[j, 0] += tjx
+    if dim == 3:
+        fpair[k, 2] = fz
+        force[i, 2] -= fz
+        force[j, 2] += fz
+        torque[i, 1] += tiy
+        torque[i, 2] += tiz
+        torque[j, 1] += tjy
+        torque[j, 2] += tjz
 
 
 def stepper(dim, law_pp, law_pw, periodic=False):
@@ -352,8 +394,8 @@ def stepper(dim, law_pp, law_pw, periodic=False):
     def run_steps(n_steps, prime, resume, serial, dt, gravity, damping, skin, overlap_limit,
                   pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass,
                   inv_inertia, is_fixed, normal, mat_id, pos_ref, grow, hmat,
-                  pairs, img, touch, hist, fpair, contrib, slot, inc_start, params_pp,
-                  inner, n_inner, pos_inner, skin_inner,
+                  pairs, img, touch, hist, fpair, contrib, slot, inc_start, blk_start,
+                  params_pp, inner, n_inner, pos_inner, skin_inner,
                   wpairs, whist, wforce, wtorque, wstart, params_pw,
                   status_out, work_out):
         """Advance ``n_steps``; returns the number of completed steps.
@@ -381,7 +423,7 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                 maxd2 = 0.0
                 n_bad = 0
                 for b in numba.prange(n):
-                    s2 = _drift_body(b, DIM, serial, dt, half, pos, vel, rot, ang_vel,
+                    s2 = _drift_body(b, DIM, dt, half, pos, vel, rot, ang_vel,
                                      force, torque, inv_mass, inv_inertia, is_fixed,
                                      pos_inner)
                     if not math.isfinite(s2):
@@ -408,42 +450,27 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                     status_out[0] = REBUILD
                     return done
                 status_out[3] += 1  # inner refreshes, counted by the caller
-                n_inner[0] = _filter_inner(DIM, PERIODIC, pos, radius, hmat, pairs, img,
-                                           touch, hist, skin_inner, inner, inc_start, slot)
+                _filter_inner(DIM, PERIODIC, pos, radius, hmat, pairs, img, touch, hist,
+                              skin_inner, inner, n_inner, blk_start, inc_start, slot)
                 pos_inner[:, :] = pos
+            if prime or (resume and it == 0):  # else the drift zeroed them
+                force[:, :] = 0.0
+                torque[:, :] = 0.0
+            n_tot = n_inner[0]
+            n_int = n_inner[1]
+            work = 0.0
             if serial:
-                # ---- 3-5 on one thread: scatter as we go, in pair order
-                if prime or (resume and it == 0):  # else the drift zeroed them
-                    force[:, :] = 0.0
-                    torque[:, :] = 0.0
-
-                for q in range(n_inner[0]):
+                # ---- 3-5 on one thread: add each contact to its bodies as it comes,
+                # internal pairs first, then cross pairs (the order the threads use)
+                for q in range(n_tot):
                     k = inner[q]
                     (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
                         k, DIM, PP, PERIODIC, pos, vel, ang_vel, radius, inv_mass, mat_id,
                         hmat, pairs, img, touch, hist, params_pp, hdt, overlap_limit,
                         status_out)
-                    if not on:
-                        continue
-                    i = pairs[k, 0]
-                    j = pairs[k, 1]
-                    fpair[k, 0] = fx
-                    fpair[k, 1] = fy
-                    force[i, 0] -= fx
-                    force[i, 1] -= fy
-                    force[j, 0] += fx
-                    force[j, 1] += fy
-                    torque[i, 0] += tix
-                    torque[j, 0] += tjx
-                    if DIM == 3:
-                        fpair[k, 2] = fz
-                        force[i, 2] -= fz
-                        force[j, 2] += fz
-                        torque[i, 1] += tiy
-                        torque[i, 2] += tiz
-                        torque[j, 1] += tjy
-                        torque[j, 2] += tjz
-                work = 0.0
+                    if on:
+                        _scatter_pair(k, DIM, pairs[k, 0], pairs[k, 1], fx, fy, fz, tix,
+                                      tiy, tiz, tjx, tjy, tjz, fpair, force, torque)
                 for k in range(mw):
                     (on, fx, fy, fz, tx, ty, tz, power) = _sphere_wall(
                         k, DIM, PW, pos, vel, ang_vel, radius, inv_mass, mat_id, normal,
@@ -473,8 +500,22 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                                  inv_inertia, is_fixed, vel, ang_vel, force, torque,
                                  status_out)
             else:
-                # ---- 3. sphere-sphere contacts, parallel over pairs
-                for q in numba.prange(n_inner[0]):
+                # ---- 3a. internal pairs, parallel over blocks: both bodies of a pair
+                # belong to the block, so each block adds into its own bodies
+                for blk in numba.prange(N_BLOCKS):
+                    for q in range(blk_start[blk], blk_start[blk + 1]):
+                        k = inner[q]
+                        (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
+                            k, DIM, PP, PERIODIC, pos, vel, ang_vel, radius, inv_mass,
+                            mat_id, hmat, pairs, img, touch, hist, params_pp, hdt,
+                            overlap_limit, status_out)
+                        if on:
+                            _scatter_pair(k, DIM, pairs[k, 0], pairs[k, 1], fx, fy, fz,
+                                          tix, tiy, tiz, tjx, tjy, tjz, fpair, force,
+                                          torque)
+                # ---- 3b. cross pairs, parallel over pairs: each writes its two
+                # contributions to rows laid out body by body, in pair order
+                for q in numba.prange(n_int, n_tot):
                     k = inner[q]
                     (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
                         k, DIM, PP, PERIODIC, pos, vel, ang_vel, radius, inv_mass, mat_id,
@@ -489,7 +530,7 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                         continue
                     fpair[k, 0] = fx
                     fpair[k, 1] = fy
-                    # -f added is f subtracted, bit for bit: the serial path's order
+                    # -f added is f subtracted, bit for bit: the one-thread order
                     contrib[si, 0] = -fx
                     contrib[si, 1] = -fy
                     contrib[sj, 0] = fx
@@ -508,7 +549,6 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                         contrib[sj, 4] = tjy
                         contrib[sj, 5] = tjz
                 # ---- 4. sphere-wall contacts, parallel over pairs
-                work = 0.0
                 for k in numba.prange(mw):
                     (on, fx, fy, fz, tx, ty, tz, power) = _sphere_wall(
                         k, DIM, PW, pos, vel, ang_vel, radius, inv_mass, mat_id, normal,
@@ -530,14 +570,15 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                         wtorque[k, 1] = ty
                         wtorque[k, 2] = tz
                     work += power
-                # ---- 5. gather in pair order, gravity, damping, second half kick
+                # ---- 5. per body: internal sum, then cross rows and walls in order,
+                # gravity, damping, second half kick
                 for b in numba.prange(n):
-                    fx = 0.0
-                    fy = 0.0
-                    fz = 0.0
-                    tx = 0.0
-                    ty = 0.0
-                    tz = 0.0
+                    fx = force[b, 0]
+                    fy = force[b, 1]
+                    tx = torque[b, 0]
+                    fz = force[b, 2] if DIM == 3 else 0.0
+                    ty = torque[b, 1] if DIM == 3 else 0.0
+                    tz = torque[b, 2] if DIM == 3 else 0.0
                     for q in range(inc_start[b], inc_start[b + 1]):
                         fx += contrib[q, 0]
                         fy += contrib[q, 1]

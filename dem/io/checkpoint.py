@@ -194,6 +194,7 @@ def save_checkpoint(sim, path):
         # the inner list decides when the Verlet list is rebuilt: part of the state
         n_inner = int(sim._n_inner[0])
         g.attrs["n_inner"] = n_inner
+        g.attrs["n_internal"] = int(sim._n_inner[1])
         g.create_dataset("inner", data=sim._inner[:max(n_inner, 0)])
         g.create_dataset("pos_inner", data=sim._pos_inner)
         g = f.create_group("model")
@@ -309,8 +310,12 @@ def _read_checkpoint(path, f):
                 raise ValueError(f"{path}: contacts/{name} is missing")
     radius_ref = _checked(path, "contacts/radius_ref", g["radius_ref"], (n,), _F8)
     n_inner = int(g.attrs.get("n_inner", -1))
+    n_internal = int(g.attrs.get("n_internal", -1))
     if not -1 <= n_inner <= m:
         raise ValueError(f"{path}: contacts/n_inner = {n_inner} is outside -1..{m}")
+    if n_inner >= 0 and not 0 <= n_internal <= n_inner:
+        raise ValueError(f"{path}: contacts/n_internal = {n_internal} is outside "
+                         f"0..{n_inner}")
     inner = np.zeros(0, np.int64)
     pos_inner = None
     if n_inner >= 0:
@@ -328,7 +333,7 @@ def _read_checkpoint(path, f):
     return {"attrs": attrs, "bodies": bodies, "gravity": gravity,
             "wall_work": wall_work, "neighbors": neighbors, "contacts": contacts,
             "radius_ref": radius_ref, "box": box, "model": model,
-            "inner": (n_inner, inner, pos_inner)}
+            "inner": (n_inner, n_internal, inner, pos_inner)}
 
 
 # ------------------------------------------------------------------ failure output

@@ -19,7 +19,7 @@ log = logging.getLogger(__name__)
 DT_FACTOR = 0.07
 #: the step loop evaluates the Verlet pairs within this fraction of the skin (the
 #: inner list, refreshed from the Verlet list when a body has moved half of it)
-INNER_SKIN = 0.1
+INNER_SKIN = 0.05
 #: scenes with fewer bodies run on one thread unless told otherwise
 PARALLEL_MIN_BODIES = 1000
 

@@ -270,49 +270,58 @@ def _finish_body(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, m
 #: bodies are split into this many blocks of consecutive rows; a pair within one block
 #: is "internal", others "cross". Fixed, so that the summation order (and so every bit
 #: of the result) does not depend on the thread count.
-N_BLOCKS = 16
+N_BLOCKS = 8
+
+
+@kernel(inline=True)
+def _near(k, dim, periodic, pos, radius, hmat, pairs, img, touch, hist, skin_inner):
+    """Is Verlet pair k closer than ``r_i + r_j + skin_inner``? Resets the history of a
+    pair left out that was touching (it has opened)."""
+    i = pairs[k, 0]
+    j = pairs[k, 1]
+    r2 = 0.0
+    for a in range(dim):
+        dx = pos[j, a] - pos[i, a]
+        if periodic:
+            for c in range(dim):
+                dx += hmat[a, c] * img[k, c]
+        r2 += dx * dx
+    cut = radius[i] + radius[j] + skin_inner
+    if r2 < cut * cut:
+        return 1
+    if touch[k]:
+        touch[k] = 0
+        hist[k, 0] = 0.0
+        hist[k, 1] = 0.0
+        hist[k, 2] = 0.0
+    return 0
 
 
 @kernel
-def _filter_inner(dim, periodic, pos, radius, hmat, pairs, img, touch, hist, skin_inner,
-                  inner_out, n_inner_out, blk_start_out, inc_start_out, slot_out):
-    """The Verlet pairs closer than ``r_i + r_j + skin_inner``: the inner list.
-
-    The step loop evaluates only these until a body has moved ``skin_inner / 2``: most
-    Verlet pairs are not touching, and testing them every step costs more than this
-    pass every few steps. A pair left out that was touching has opened: its history
-    is reset here. ``inner_out`` receives the internal pairs (both bodies in one block)
-    in ascending order, then the cross pairs in ascending order; ``n_inner_out`` (2,)
-    the total and internal counts. Then :func:`inner_index`.
-    """
-    n = pos.shape[0]
+def _compact_inner(pairs, near, n_bodies, inner_out, n_inner_out, blk_start_out,
+                   inc_start_out, slot_out):
+    """The inner list from the flags ``near`` (m,): internal pairs (both bodies in one
+    block) in ascending order, then cross pairs in ascending order; ``n_inner_out``
+    (2,) gets the total and internal counts. Then :func:`inner_index`. ``near`` may be
+    a column of ``slot_out``: it is read before ``slot_out`` is written."""
     n_int = 0
     n_cross = 0
     for k in range(pairs.shape[0]):
-        i = pairs[k, 0]
-        j = pairs[k, 1]
-        r2 = 0.0
-        for a in range(dim):
-            dx = pos[j, a] - pos[i, a]
-            if periodic:
-                for c in range(dim):
-                    dx += hmat[a, c] * img[k, c]
-            r2 += dx * dx
-        cut = radius[i] + radius[j] + skin_inner
-        if r2 < cut * cut:
-            if (i * N_BLOCKS) // n == (j * N_BLOCKS) // n:
-                inner_out[n_int] = k
+        if near[k]:
+            if (pairs[k, 0] * N_BLOCKS) // n_bodies == (pairs[k, 1] * N_BLOCKS) // n_bodies:
                 n_int += 1
             else:
-                slot_out[n_cross, 0] = k  # scratch until inner_index
                 n_cross += 1
-        elif touch[k]:
-            touch[k] = 0
-            hist[k, 0] = 0.0
-            hist[k, 1] = 0.0
-            hist[k, 2] = 0.0
-    for u in range(n_cross):
-        inner_out[n_int + u] = slot_out[u, 0]
+    q_int = 0
+    q_cross = n_int
+    for k in range(pairs.shape[0]):
+        if near[k]:
+            if (pairs[k, 0] * N_BLOCKS) // n_bodies == (pairs[k, 1] * N_BLOCKS) // n_bodies:
+                inner_out[q_int] = k
+                q_int += 1
+            else:
+                inner_out[q_cross] = k
+                q_cross += 1
     n_inner_out[0] = n_int + n_cross
     n_inner_out[1] = n_int
     inner_index(pairs, inner_out, n_inner_out, blk_start_out, inc_start_out, slot_out)
@@ -450,8 +459,13 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                     status_out[0] = REBUILD
                     return done
                 status_out[3] += 1  # inner refreshes, counted by the caller
-                _filter_inner(DIM, PERIODIC, pos, radius, hmat, pairs, img, touch, hist,
-                              skin_inner, inner, n_inner, blk_start, inc_start, slot)
+                # the inner list: which Verlet pairs are near (in parallel), then
+                # their list in order (one pass over flags)
+                near = slot[:, 1]
+                for k in numba.prange(pairs.shape[0]):
+                    near[k] = _near(k, DIM, PERIODIC, pos, radius, hmat, pairs, img,
+                                    touch, hist, skin_inner)
+                _compact_inner(pairs, near, n, inner, n_inner, blk_start, inc_start, slot)
                 pos_inner[:, :] = pos
             if prime or (resume and it == 0):  # else the drift zeroed them
                 force[:, :] = 0.0

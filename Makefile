@@ -31,6 +31,7 @@ test-mpi: $(STAMP)
 bench: $(STAMP)
 	$(BIN)/python benchmarks/dem_throughput.py
 	$(BIN)/python benchmarks/dt_speed_accuracy.py
+	$(BIN)/python benchmarks/neighbor_backends.py
 
 clean:
 	rm -rf $(VENV) .numba_cache .pytest_cache output

@@ -32,6 +32,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/dem_throughput.py
 	$(BIN)/python benchmarks/dt_speed_accuracy.py
 	$(BIN)/python benchmarks/neighbor_backends.py
+	$(BIN)/python benchmarks/step_profile.py
 
 clean:
 	rm -rf $(VENV) .numba_cache .pytest_cache output

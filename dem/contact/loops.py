@@ -567,15 +567,7 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                     (on, fx, fy, fz, tx, ty, tz, power) = _sphere_wall(
                         k, DIM, PW, pos, vel, ang_vel, radius, inv_mass, mat_id, normal,
                         wpairs, whist, params_pw, hdt, overlap_limit, status_out)
-                    if not on:
-                        wforce[k, 0] = 0.0  # the gather reads every wall pair
-                        wforce[k, 1] = 0.0
-                        wtorque[k, 0] = 0.0
-                        if DIM == 3:
-                            wforce[k, 2] = 0.0
-                            wtorque[k, 1] = 0.0
-                            wtorque[k, 2] = 0.0
-                        continue
+                    # written even when not touching (zeros): the gather reads every row
                     wforce[k, 0] = fx
                     wforce[k, 1] = fy
                     wtorque[k, 0] = tx

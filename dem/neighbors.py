@@ -1,8 +1,9 @@
 """Neighbour search: a Verlet list with a skin, built over an O(n) cell list.
 
-The list holds every sphere pair closer than ``r_i + r_j + skin`` as a half list
+The list holds every particle pair closer than ``r_i + r_j + skin`` as a half list
 (``i < j``), sorted by ``(i, j)``, with the periodic image of ``j`` for periodic axes,
-and every (sphere, wall) pair closer than ``r_i + skin``. It stays valid while no body
+and every (particle, wall) pair closer than ``r_i + skin``; ``r`` is a sphere's radius
+or a shape's bounding radius. It stays valid while no body
 has moved more than ``skin / 2`` since the build. Contact history survives a rebuild:
 rows are carried to the new list by pair key ``(i, j)`` with a linear merge of the two
 sorted lists. A k-d tree backend (``scipy.spatial.cKDTree``) builds the same list.
@@ -221,6 +222,8 @@ def incidence(pairs, n, col, start_out, list_out):
 class Box:
     """The simulation domain: bounds ``lo``/``hi`` (d,) [m], periodic axes (d,) bool.
 
+    Exported as ``dem.Domain`` (``dem.Box`` is the box-shaped particle).
+
     Non-periodic axes need no bounds (the cell grid follows the particles); a periodic
     axis wraps positions into ``[lo, hi)``.
     """
@@ -276,7 +279,8 @@ class NeighborList:
     def build(self, bodies):
         """Rebuild both lists from the current positions (wrapping periodic axes)."""
         d = bodies.dim
-        spheres = bodies.ids(0)
+        # every particle (sphere or shape, by its bounding radius) against every other
+        spheres = np.flatnonzero(bodies.kind != 1).astype(np.int32)
         walls = bodies.ids(1)
         box = self.box or Box(np.zeros(d), np.zeros(d), np.zeros(d, bool))
         box.wrap(bodies.pos, spheres)

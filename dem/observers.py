@@ -103,6 +103,9 @@ def contact_summary(sim):
     d = b.dim
     out = {k: [] for k in ("i", "j", "normal", "overlap", "x1", "x2", "branch", "force",
                            "arm_i", "arm_j", "kn", "kt", "is_wall")}
+    if sim.shaped:
+        _shape_summary(sim, out)
+        return _concatenate(out, d)
     # sphere-sphere
     p, img = nl.pairs, nl.img
     if p.shape[0]:
@@ -146,12 +149,54 @@ def contact_summary(sim):
         out["arm_i"].append(arm), out["arm_j"].append(np.zeros_like(arm))
         out["kn"].append(kn), out["kt"].append(kt)
         out["is_wall"].append(np.ones(i.size, bool))
+    return _concatenate(out, d)
+
+
+def _concatenate(out, d):
     shapes = {"i": (0,), "j": (0,), "normal": (0, d), "overlap": (0,), "x1": (0, d),
               "x2": (0, d), "branch": (0, d), "force": (0, d), "arm_i": (0, d),
               "arm_j": (0, d), "kn": (0,), "kt": (0,), "is_wall": (0,)}
     dtypes = {"i": np.int64, "j": np.int64, "is_wall": bool}
     return {k: (np.concatenate(v) if v else np.zeros(shapes[k], dtypes.get(k, np.float64)))
             for k, v in out.items()}
+
+
+def _shape_summary(sim, out):
+    """:func:`contact_summary` of a scene with level-set shapes, from the loop's
+    per-contact geometry rows (overlap, normal i->j, contact point)."""
+    b, nl = sim.bodies, sim.neighbors
+    d = b.dim
+    p = nl.pairs
+    if p.shape[0]:
+        t = sim.pgeom[:, 0] > 0.0
+        i, j = p[t, 0], p[t, 1]
+        g = sim.pgeom[t]
+        ov, n, c = g[:, 0], g[:, 1:1 + d], g[:, 4:4 + d]
+        pj = b.pos[j] + nl.img[t] @ sim._hmat.T
+        ri, rj = b.radius[i], b.radius[j]
+        kn, kt = _stiffness(sim, "pp", ov, ri * rj / (ri + rj), b.mat_id[i], b.mat_id[j])
+        out["i"].append(i), out["j"].append(j), out["normal"].append(n)
+        out["overlap"].append(ov)
+        out["x1"].append(c + 0.5 * ov[:, None] * n), out["x2"].append(c - 0.5 * ov[:, None] * n)
+        out["branch"].append(pj - b.pos[i]), out["force"].append(sim.fpair[t])
+        out["arm_i"].append(c - b.pos[i]), out["arm_j"].append(c - pj)
+        out["kn"].append(kn), out["kt"].append(kt)
+        out["is_wall"].append(np.zeros(i.size, bool))
+    wp = nl.wall_pairs
+    if wp.shape[0]:
+        t = sim.wgeom[:, 0] > 0.0
+        i, w = wp[t, 0], wp[t, 1]
+        g = sim.wgeom[t]
+        ov, n, c = g[:, 0], g[:, 1:1 + d], g[:, 4:4 + d]
+        kn, kt = _stiffness(sim, "pw", ov, b.radius[i], b.mat_id[i], b.mat_id[w])
+        arm = c - b.pos[i]
+        out["i"].append(i), out["j"].append(w), out["normal"].append(n)
+        out["overlap"].append(ov)
+        out["x1"].append(c + 0.5 * ov[:, None] * n), out["x2"].append(c - 0.5 * ov[:, None] * n)
+        out["branch"].append(2.0 * arm), out["force"].append(-sim.wforce[t])
+        out["arm_i"].append(arm), out["arm_j"].append(np.zeros_like(arm))
+        out["kn"].append(kn), out["kt"].append(kt)
+        out["is_wall"].append(np.ones(i.size, bool))
 
 
 def _stiffness(sim, bucket, ov, r_eff, ma, mb):
@@ -189,7 +234,7 @@ def stress_and_tangent(sim, volume, ids=None, kinetic=True):
     mj = inside[c["j"]] & ~c["is_wall"]
     sig += np.einsum("ca,cb->ab", c["force"][mj], c["arm_j"][mj])
     if kinetic:
-        free = inside & (b.kind == Shape.SPHERE) & ~b.is_fixed
+        free = inside & (b.kind != Shape.PLANE) & ~b.is_fixed
         sig -= np.einsum("p,pa,pb->ab", b.mass[free], b.vel[free], b.vel[free])
     sig = 0.5 * (sig + sig.T) / volume
     # tangent over contacts with at least one side in the collection
@@ -231,17 +276,68 @@ class CollectionTracker(_Series):
 
 
 def kinetic_energy(bodies):
-    """Translational and rotational kinetic energy [J] of the free bodies."""
+    """Translational and rotational kinetic energy [J] of the free bodies.
+
+    The rotational part is ``1/2 w_b . I w_b`` with ``w_b`` the angular velocity in the
+    body's principal frame.
+    """
     free = ~bodies.is_fixed
     tr = 0.5 * np.sum(bodies.mass[free] * np.sum(bodies.vel[free] ** 2, axis=1))
-    ro = 0.5 * np.sum(bodies.inertia[free] * bodies.ang_vel[free] ** 2)
+    w = body_frame(bodies.rot[free], bodies.ang_vel[free])
+    ro = 0.5 * np.sum(bodies.inertia[free] * w ** 2)
     return float(tr), float(ro)
+
+
+def angular_momentum(bodies, origin=None):
+    """Total angular momentum (3,) [kg m^2/s] (2D: (1,)) of the free bodies about ``origin``."""
+    free = ~bodies.is_fixed
+    d = bodies.dim
+    x = bodies.pos[free] - (0.0 if origin is None else np.asarray(origin, np.float64))
+    p = bodies.mass[free, None] * bodies.vel[free]
+    spin_b = bodies.inertia[free] * body_frame(bodies.rot[free], bodies.ang_vel[free])
+    if d == 2:
+        orbit = x[:, 0] * p[:, 1] - x[:, 1] * p[:, 0]
+        return np.array([orbit.sum() + spin_b[:, 0].sum()])
+    spin = world_frame(bodies.rot[free], spin_b)
+    return np.cross(x, p).sum(axis=0) + spin.sum(axis=0)
+
+
+def _quat_apply(q, v, inverse):
+    w, u = q[:, :1], q[:, 1:].copy()
+    if inverse:
+        u = -u
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def body_frame(rot, vec):
+    """World vectors (n, 3) into the bodies' frames (3D quaternions); 2D: unchanged."""
+    return vec if rot.shape[1] == 1 else _quat_apply(rot, vec, True)
+
+
+def world_frame(rot, vec):
+    """Body-frame vectors (n, 3) into the world frame; 2D: unchanged."""
+    return vec if rot.shape[1] == 1 else _quat_apply(rot, vec, False)
 
 
 def elastic_energy(sim):
     """Elastic energy [J] stored in the contacts (normal and tangential springs)."""
+    sim.prime()
     b, nl = sim.bodies, sim.neighbors
     e = 0.0
+    if sim.shaped:
+        for bucket, pairs, hist, geom, tab in (
+                ("pp", nl.pairs, sim.hist, sim.pgeom, sim._params_pp),
+                ("pw", nl.wall_pairs, sim.whist, sim.wgeom, sim._params_pw)):
+            if not pairs.shape[0]:
+                continue
+            i, j = pairs[:, 0], pairs[:, 1]
+            ri, rj = b.radius[i], b.radius[j]
+            r_eff = ri * rj / (ri + rj) if bucket == "pp" else ri
+            e += contact_energy(sim.model.kind(bucket).code, geom[:, 0].copy(),
+                                np.ascontiguousarray(r_eff), tab, b.mat_id[i], b.mat_id[j],
+                                hist, np.flatnonzero(geom[:, 0] > 0.0))
+        return float(e)
     for bucket, pairs, hist, tab in (("pp", nl.pairs, sim.hist, sim._params_pp),
                                      ("pw", nl.wall_pairs, sim.whist, sim._params_pw)):
         if not pairs.shape[0]:

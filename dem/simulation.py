@@ -6,8 +6,24 @@ import math
 import numba
 import numpy as np
 
-from .contact.loops import N_BLOCKS, NONFINITE, OK, OVERLAP, REBUILD, inner_index, stepper
+from .contact.loops import (
+    N_BLOCKS,
+    NONFINITE,
+    OK,
+    OVERLAP,
+    REBUILD,
+    inner_index,
+    stepper,
+)
 from .contact.model import ContactModel
+from .contact.shape_loop import (
+    N_WARM,
+    NOCONVERGE,
+    method_for,
+    pair_incidence,
+    shape_stepper,
+    wall_method_for,
+)
 from .neighbors import NeighborList, carry_history, incidence
 from .shapes import Shape
 
@@ -34,15 +50,21 @@ def critical_time_step(bodies, model):
     ``dt_crit = sqrt(2 m_min / k_max)``: the velocity Verlet stability limit
     (``dt < 2 / omega``) of two of the lightest bodies joined by the stiffest spring,
     where a tangential spring counts with its rotational coupling ``1 + m r^2 / I``.
+    For non-spherical bodies the normal spring acts off-centre too: both count with
+    ``1 + m r^2 / I_min`` (``r`` the bounding radius), the largest over the bodies.
     Returns ``(dt_crit, m_min, k_max)``.
     """
     if not isinstance(model, ContactModel):
         model = ContactModel(model)
-    free = (~bodies.is_fixed) & (bodies.kind == Shape.SPHERE)
+    free = (~bodies.is_fixed) & (bodies.kind != Shape.PLANE)
     if not free.any():
         return math.inf, math.inf, 0.0
     m_min = float(bodies.mass[free].min())
     k_max = model.max_stiffness(bodies)
+    shaped = free & (bodies.kind != Shape.SPHERE)
+    if shaped.any():
+        arm = bodies.mass[shaped] * bodies.radius[shaped] ** 2
+        k_max *= 1.0 + float(np.max(arm / bodies.inertia[shaped].min(axis=1)))
     return math.sqrt(2.0 * m_min / k_max), m_min, k_max
 
 
@@ -70,6 +92,15 @@ class Simulation:
     overlap_limit : float
         A contact whose overlap exceeds this fraction of the smaller radius stops the
         run (default 0.5).
+    detection : {"auto", "admm"}
+        Contact detection for non-spherical bodies: closed forms and the exact polytope
+        solver where they exist, ADMM otherwise ("auto"), or ADMM for every pair of
+        non-spherical bodies ("admm"; for comparisons). Sphere scenes ignore it.
+    admm_tol : float
+        ADMM stopping tolerance, relative to the smaller body's bounding radius.
+    admm_max_iter : int
+        ADMM iteration cap per solve (a warm solve that hits it retries cold; a cold
+        one that hits it stops the run, naming the pair).
     threads : int, optional
         Threads for the compiled loops; default all of numba's threads for scenes of
         at least ``PARALLEL_MIN_BODIES`` bodies, else 1 (threads only cost time on
@@ -82,7 +113,8 @@ class Simulation:
 
     def __init__(self, bodies, model, dt=None, gravity=None, damping=0.0, skin=None,
                  box=None, neighbor_backend="cell", overlap_limit=0.5, observers=(),
-                 controllers=(), state_objects=(), allow_unstable_dt=False, threads=None):
+                 controllers=(), state_objects=(), allow_unstable_dt=False, threads=None,
+                 detection="auto", admm_tol=1e-8, admm_max_iter=200):
         if not isinstance(model, ContactModel):
             model = ContactModel(model)
         self.bodies = bodies
@@ -113,7 +145,7 @@ class Simulation:
         if not overlap_limit > 0.0:
             raise ValueError(f"overlap_limit must be positive, got {overlap_limit}")
         self.overlap_limit = float(overlap_limit)
-        sph = bodies.kind == Shape.SPHERE
+        sph = bodies.kind != Shape.PLANE
         if skin is None:
             skin = 0.4 * float(bodies.radius[sph].mean()) if sph.any() else 1.0
         self.box = box
@@ -130,8 +162,20 @@ class Simulation:
         self.wall_work = np.zeros(1)
         self.n_inner_refreshes = 0  # diagnostics: inner contact list remade
         self._status = np.zeros(4, np.int64)
-        self._kernel = stepper(self.dim, model.kind("pp").code, model.kind("pw").code,
-                               periodic=box is not None and bool(np.any(box.periodic)))
+        periodic = box is not None and bool(np.any(box.periodic))
+        if detection not in ("auto", "admm"):
+            raise ValueError(f"detection must be 'auto' or 'admm', got {detection!r}")
+        if not (admm_tol > 0.0 and int(admm_max_iter) >= 1):
+            raise ValueError("admm_tol must be positive and admm_max_iter >= 1")
+        self.detection = detection
+        self.admm_tol = float(admm_tol)
+        self.admm_max_iter = int(admm_max_iter)
+        self.shaped = bodies.has_shapes
+        if self.shaped:
+            self._shape_setup(periodic)
+        else:
+            self._kernel = stepper(self.dim, model.kind("pp").code, model.kind("pw").code,
+                                   periodic=periodic)
         self._primed = False
         self._failure_hooks = []
 
@@ -147,6 +191,8 @@ class Simulation:
         d = self.dim
         self._hmat = self.box.matrix() if self.box is not None else np.zeros((d, d))
         self._fixed = b.is_fixed.astype(np.uint8)
+        self._kind64 = b.kind.astype(np.int64)
+        self._shape64 = b.shape.astype(np.int64)
 
     def _rebuild(self):
         """Rebuild the neighbour lists, carrying contact history by pair key."""
@@ -167,7 +213,10 @@ class Simulation:
         self.fpair = np.zeros((m, d))
         self.wforce = np.zeros((mw, d))
         self.wtorque = np.zeros((mw, nr))
-        self._index()
+        if self.shaped:
+            self._shape_rebuild(old)
+        else:
+            self._index()
         self._radius_ref = b.radius.copy()
 
     def _index(self):
@@ -196,6 +245,8 @@ class Simulation:
 
     def _call(self, n_steps, prime, resume=False):
         b, nl = self.bodies, self.neighbors
+        if self.shaped:
+            return self._shape_call(n_steps, prime, resume)
         return self._kernel(
             n_steps, prime, resume, numba.get_num_threads() == 1, self.dt, self.gravity,
             self.damping, nl.skin, self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel,
@@ -214,7 +265,7 @@ class Simulation:
             self._refresh_tables()
             if self.neighbors.pairs is None:
                 self._rebuild()
-            else:
+            elif not self.shaped:
                 self._index()
             self._call(0, True)
             self._check_status(None)
@@ -299,6 +350,11 @@ class Simulation:
             msg = (f"overlap between bodies {i} and {j} exceeds {self.overlap_limit:g} x the "
                    f"smaller radius at step {self.step}: dt = {self.dt:.4g} s may be too "
                    f"large or the bodies too fast (critical step {self.dt_crit:.4g} s)")
+        elif code == NOCONVERGE:
+            msg = (f"contact detection between bodies {i} and {j} did not converge in "
+                   f"{self.admm_max_iter} ADMM iterations, warm or cold, at step "
+                   f"{self.step} (tolerance {self.admm_tol:g}): raise admm_max_iter or "
+                   f"admm_tol, or check the shapes' SDFs")
         elif code == NONFINITE:
             where = f" on body {i}" if i >= 0 else ""
             msg = (f"non-finite position, velocity or force{where} at step {self.step + 1}: "
@@ -331,6 +387,88 @@ class Simulation:
         # after each drift, this catches growth alone
         if 2.0 * self._grow() > 0.5 * self.neighbors.skin:
             self._rebuild()
+
+    # ------------------------------------------------------------------ level-set shapes
+    def _shape_setup(self, periodic):
+        """Buckets of the scene's kinds and the loop compiled for them."""
+        b = self.bodies
+        force_admm = self.detection == "admm"
+        kinds = sorted({int(k) for k in np.unique(b.kind) if k != Shape.PLANE})
+        self._bucket_keys = [(ka, kb) for ka in kinds for kb in kinds if ka <= kb]
+        self._bucket_methods = np.array([method_for(ka, kb, force_admm)
+                                         for ka, kb in self._bucket_keys], np.int64)
+        has_walls = bool(np.any(b.kind == Shape.PLANE))
+        self._wall_kinds = kinds if has_walls else []
+        self._wall_methods = np.array([wall_method_for(k, force_admm)
+                                       for k in self._wall_kinds], np.int64)
+        customs = {id(sh.user_sdf): sh.user_sdf for sh in b.table.shapes
+                   if getattr(sh, "code", None) == Shape.CUSTOM}
+        if len(customs) > 1:
+            raise ValueError("a scene may hold one user-defined SDF function (shapes of it "
+                             "may differ by their parameters)")
+        custom = next(iter(customs.values())) if customs else None
+        self._shape_kernel = shape_stepper(
+            self.dim, tuple(sorted(set(self._bucket_methods.tolist()))),
+            tuple(sorted(set(self._wall_methods.tolist()))), self.model.kind("pp").code,
+            self.model.kind("pw").code, periodic=periodic, custom_sdf=custom)
+
+    def _shape_rebuild(self, old):
+        b, nl = self.bodies, self.neighbors
+        m, mw = nl.pairs.shape[0], nl.wall_pairs.shape[0]
+        nr = b.n_rot
+        self.warm = np.zeros((m, N_WARM))
+        self.wwarm = np.zeros((mw, N_WARM))
+        if old[0] is not None and getattr(self, "_old_warm", None) is not None:
+            carry_history(old[0], self._old_warm[0], nl.pairs, self.warm)
+            carry_history(old[2], self._old_warm[1], nl.wall_pairs, self.wwarm)
+        self._old_warm = (self.warm, self.wwarm)
+        self.iters = np.zeros(m, np.int64)
+        self.witers = np.zeros(mw, np.int64)
+        self.tpair = np.zeros((m, 2 * nr))
+        self.pgeom = np.zeros((m, 7))
+        self.wgeom = np.zeros((mw, 7))
+        self._shape_index()
+
+    def _shape_index(self):
+        """Pairs and wall pairs grouped by bucket; each body's pair and wall rows."""
+        b, nl = self.bodies, self.neighbors
+        n, m, mw = b.n, nl.pairs.shape[0], nl.wall_pairs.shape[0]
+        kinds = b.kind
+        keys = {k: q for q, k in enumerate(self._bucket_keys)}
+        ki, kj = kinds[nl.pairs[:, 0]], kinds[nl.pairs[:, 1]]
+        code = np.array([keys[(min(x, y), max(x, y))] for x, y in zip(ki, kj)],
+                        np.int64) if m else np.zeros(0, np.int64)
+        self._order = np.argsort(code, kind="stable").astype(np.int64)
+        self._bstart = np.searchsorted(code[self._order],
+                                       np.arange(len(self._bucket_keys) + 1)).astype(np.int64)
+        wkeys = {k: q for q, k in enumerate(self._wall_kinds)}
+        wcode = np.array([wkeys[int(x)] for x in kinds[nl.wall_pairs[:, 0]]], np.int64) \
+            if mw else np.zeros(0, np.int64)
+        self._worder = np.argsort(wcode, kind="stable").astype(np.int64)
+        self._wbstart = np.searchsorted(wcode[self._worder],
+                                        np.arange(len(self._wall_kinds) + 1)).astype(np.int64)
+        self._inc_start = np.zeros(n + 1, np.int64)
+        self._inc_list = np.zeros(2 * m, np.int64)
+        pair_incidence(nl.pairs, n, self._inc_start, self._inc_list)
+        self._winc_start = np.zeros(n + 1, np.int64)
+        self._winc_list = np.zeros(mw, np.int64)
+        incidence(nl.wall_pairs, n, 0, self._winc_start, self._winc_list)
+
+    def _shape_call(self, n_steps, prime, resume):
+        b, nl = self.bodies, self.neighbors
+        return self._shape_kernel(
+            n_steps, prime, resume, self.dt, self.gravity, self.damping, nl.skin,
+            self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel, b.force, b.torque, b.radius,
+            b.mass, self._inv_mass, self._inv_inertia, self._fixed, b.normal, b.mat_id,
+            self._kind64, self._shape64, nl.pos_ref, self._grow(), self._hmat,
+            b.table.arrays(), self.admm_tol, self.admm_max_iter,
+            nl.pairs, nl.img, self._order, self._bstart, self._bucket_methods, self.touch,
+            self.hist, self.warm, self.iters, self.pgeom, self.fpair, self.tpair,
+            self._inc_start, self._inc_list, self._params_pp,
+            nl.wall_pairs, self._worder, self._wbstart, self._wall_methods, self.whist,
+            self.wwarm, self.witers, self.wgeom, self.wforce, self.wtorque,
+            self._winc_start, self._winc_list, self._params_pw, self._status,
+            self.wall_work)
 
     # ------------------------------------------------------------------ contact data
     def contacts(self):

@@ -12,6 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .shapes import Plane, Shape
+from .shapes.table import ShapeTable
 
 
 def n_rot(dim):
@@ -38,6 +39,9 @@ class Bodies:
     mat_id : (n,) int32, material row in the contact model's parameter table
     is_fixed : (n,) bool, moved only by its prescribed ``vel``; forces do not act on it
     normal : (n, d) float64, world-frame normal of plane bodies (zero rows otherwise)
+    density : (n,) float64 [kg/m^3]
+    shape : (n,) int32, row of the body's shape in ``table`` (-1 for spheres and planes)
+    table : ShapeTable, the non-sphere shapes (see :mod:`dem.shapes.table`)
     """
 
     dim: int
@@ -55,6 +59,14 @@ class Bodies:
     is_fixed: np.ndarray
     normal: np.ndarray
     density: np.ndarray = field(default=None)
+    shape: np.ndarray = field(default=None)
+    table: ShapeTable = field(default=None)
+
+    def __post_init__(self):
+        if self.shape is None:
+            self.shape = np.full(self.pos.shape[0], -1, np.int32)
+        if self.table is None:
+            self.table = ShapeTable()
 
     # ------------------------------------------------------------------ construction
     @classmethod
@@ -68,7 +80,8 @@ class Bodies:
                    ang_vel=z(0, nr), force=z(0, dim), torque=z(0, nr), radius=z(0),
                    mass=z(0), inertia=z(0, nr), kind=np.zeros(0, np.int32),
                    mat_id=np.zeros(0, np.int32), is_fixed=np.zeros(0, bool),
-                   normal=z(0, dim), density=z(0))
+                   normal=z(0, dim), density=z(0), shape=np.zeros(0, np.int32),
+                   table=ShapeTable())
 
     @classmethod
     def spheres(cls, pos, radius, density, vel=None, mat_id=0):
@@ -148,8 +161,81 @@ class Bodies:
                            normal=shape.normal[None, :], density=np.zeros(1))
         return int(idx[0])
 
+    def add_shapes(self, shape, pos, density, rot=None, vel=None, ang_vel=None, mat_id=0):
+        """Append bodies of one level-set ``shape`` (Box, ConvexPolygon, ...); returns ids.
+
+        The shape may be given in any frame: it is re-centred on its centre of mass and
+        turned onto its principal axes (:meth:`principal`), and each body is placed so
+        that the shape's own frame sits at ``pos`` with orientation ``rot``. All bodies
+        share one row of the shape table unless a state object later grows them.
+
+        Parameters
+        ----------
+        shape : a shape object with ``principal``/``rows`` (see :mod:`dem.shapes`)
+        pos : (n, d) array_like [m], where each body puts the origin of the shape's frame
+        density : float [kg/m^3] (per metre of thickness in 2D), > 0
+        rot : (n,) angles [rad] in 2D, (n, 4) unit quaternions (w, x, y, z) in 3D, optional
+        vel : (n, d) [m/s], optional; ang_vel : (n, 1) or (n, 3) [rad/s], world frame
+        mat_id : int or (n,) material index
+
+        Examples
+        --------
+        >>> from dem.shapes import Box
+        >>> b = Bodies.empty(2)
+        >>> ids = b.add_shapes(Box([0.5, 0.25]), [[0.0, 0.0], [2.0, 0.0]], density=1000.0)
+        >>> ids.tolist(), float(b.mass[0]), round(float(b.radius[0]), 4)
+        ([0, 1], 500.0, 0.559)
+        """
+        d = self.dim
+        pos = np.atleast_2d(np.asarray(pos, dtype=np.float64))
+        if pos.ndim != 2 or pos.shape[1] != d:
+            raise ValueError(f"pos must have shape (n, {d}), got {pos.shape}")
+        n = pos.shape[0]
+        if getattr(shape, "dim", d) != d:
+            raise ValueError(f"a {shape.dim}D shape cannot go into a {d}D scene")
+        density = float(density)
+        if not (density > 0.0 and np.isfinite(density)):
+            raise ValueError(f"density must be positive and finite, got {density}")
+        if not np.all(np.isfinite(pos)):
+            raise ValueError("pos must be finite")
+        principal, rotation, centroid = shape.principal(density)
+        mass, _, _ = principal.mass_properties(density)
+        moments = np.asarray(principal.principal_moments(density), np.float64).reshape(-1)
+        s = self.table.add(principal.rows(), principal)
+        rotation = np.asarray(rotation, np.float64)
+        centroid = np.asarray(centroid, np.float64).reshape(d)
+        if d == 2:
+            ang = np.zeros(n) if rot is None else np.broadcast_to(
+                np.asarray(rot, np.float64).reshape(-1), (n,)).copy()
+            c, sn = np.cos(ang), np.sin(ang)
+            world = np.stack([c * centroid[0] - sn * centroid[1],
+                              sn * centroid[0] + c * centroid[1]], axis=1)
+            body_rot = (ang + np.arctan2(rotation[1, 0], rotation[0, 0]))[:, None]
+        else:
+            q = np.tile([1.0, 0.0, 0.0, 0.0], (n, 1)) if rot is None else np.broadcast_to(
+                np.asarray(rot, np.float64), (n, 4)).copy()
+            norm = np.linalg.norm(q, axis=1, keepdims=True)
+            if not np.all(norm > 0.0):
+                raise ValueError("rot quaternions must be non-zero")
+            q = q / norm
+            world = np.stack([quat_rotate(qq, centroid) for qq in q])
+            qp = matrix_to_quat(rotation)
+            body_rot = np.stack([quat_mul(qq, qp) for qq in q])
+        v = np.zeros((n, d)) if vel is None else np.broadcast_to(
+            np.asarray(vel, dtype=np.float64), (n, d)).copy()
+        idx = self._append(pos=pos + world, vel=v, rot=body_rot,
+                           radius=np.full(n, principal.bounding_radius),
+                           mass=np.full(n, mass),
+                           inertia=np.tile(moments, (n, 1)), kind=int(principal.code),
+                           mat_id=mat_id, is_fixed=False, normal=np.zeros((n, d)),
+                           density=np.full(n, density), shape=s)
+        if ang_vel is not None:
+            self.ang_vel[idx] = np.broadcast_to(np.asarray(ang_vel, np.float64),
+                                                (n, self.n_rot))
+        return idx
+
     def _append(self, *, pos, vel, rot, radius, mass, inertia, kind, mat_id, is_fixed,
-                normal, density):
+                normal, density, shape=-1):
         n0, n = self.n, pos.shape[0]
         nr = n_rot(self.dim)
 
@@ -170,6 +256,7 @@ class Bodies:
         self.is_fixed = cat(self.is_fixed, np.full(n, bool(is_fixed)))
         self.normal = cat(self.normal, normal)
         self.density = cat(self.density, density)
+        self.shape = cat(self.shape, np.broadcast_to(np.asarray(shape, np.int32), (n,)))
         return np.arange(n0, n0 + n, dtype=np.int32)
 
     # ------------------------------------------------------------------ queries
@@ -206,7 +293,7 @@ class Bodies:
         self.inertia[ids[free]] = (k * m * radius**2)[free, None]
 
     def sort_spatially(self, cell=None):
-        """Reorder the spheres along a Z-order (Morton) curve of cells, in place.
+        """Reorder the particles along a Z-order (Morton) curve of cells, in place.
 
         Neighbours then sit close together in memory, which makes the contact loop
         faster (a few percent to tens of percent, growing with the scene). Call it while
@@ -229,7 +316,7 @@ class Bodies:
         >>> b.sort_spatially().tolist(), b.pos[:, 0].tolist()
         ([1, 2, 0], [0.0, 1.0, 3.0])
         """
-        rows = self.ids(Shape.SPHERE)
+        rows = np.flatnonzero(self.kind != Shape.PLANE).astype(np.int32)
         order = np.arange(self.n)
         if rows.size < 2:
             return order
@@ -248,8 +335,58 @@ class Bodies:
         return order
 
     ARRAYS = ("pos", "vel", "rot", "ang_vel", "force", "torque", "radius", "mass",
-              "inertia", "kind", "mat_id", "is_fixed", "normal", "density")
+              "inertia", "kind", "mat_id", "is_fixed", "normal", "density", "shape")
 
     def copy(self):
         """A deep copy of the table."""
-        return Bodies(dim=self.dim, **{k: getattr(self, k).copy() for k in self.ARRAYS})
+        return Bodies(dim=self.dim, table=self.table.copy(),
+                      **{k: getattr(self, k).copy() for k in self.ARRAYS})
+
+    @property
+    def has_shapes(self):
+        """Whether any body is neither a sphere nor a plane."""
+        return bool(np.any(self.shape >= 0))
+
+
+def quat_mul(p, q):
+    """Hamilton product of quaternions (w, x, y, z)."""
+    w1, x1, y1, z1 = p
+    w2, x2, y2, z2 = q
+    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
+                     w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
+                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+
+
+def quat_rotate(q, v):
+    """Rotate vector ``v`` (3,) by unit quaternion ``q``."""
+    return quat_to_matrix(q) @ np.asarray(v, np.float64)
+
+
+def quat_to_matrix(q):
+    """Rotation matrix (3, 3) of a unit quaternion (w, x, y, z)."""
+    w, x, y, z = q
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def matrix_to_quat(r):
+    """Unit quaternion (w, x, y, z) of a rotation matrix (3, 3), w >= 0."""
+    r = np.asarray(r, np.float64)
+    t = np.trace(r)
+    if t > 0.0:
+        s = 2.0 * np.sqrt(t + 1.0)
+        q = np.array([0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s,
+                      (r[1, 0] - r[0, 1]) / s])
+    else:
+        i = int(np.argmax(np.diag(r)))
+        j, k = (i + 1) % 3, (i + 2) % 3
+        s = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[k, k])
+        q = np.empty(4)
+        q[0] = (r[k, j] - r[j, k]) / s
+        q[1 + i] = 0.25 * s
+        q[1 + j] = (r[j, i] + r[i, j]) / s
+        q[1 + k] = (r[k, i] + r[i, k]) / s
+    q /= np.linalg.norm(q)
+    return q if q[0] >= 0.0 else -q

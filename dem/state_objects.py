@@ -61,3 +61,52 @@ class SphereRadius(RK2):
 
     def rhs(self, y, t):
         return np.asarray(self.rate(y, t), dtype=np.float64) * np.ones_like(y)
+
+
+class ShapeScale(RK2):
+    """Scale factors of level-set shapes driven by ``ds/dt = g(s, t)`` [1/s].
+
+    A growing box, a swelling polygon: the shape-table rows ``rows`` are scaled about
+    their centres by ``s`` (1 at the start); every body of those rows follows, with its
+    bounding radius ``∝ s``, mass ``∝ s^d`` and inertia ``∝ s^(d+2)`` at constant density.
+    Give a body its own row (one :meth:`Bodies.add_shapes` call) to grow it alone.
+
+    Parameters
+    ----------
+    rows : array_like of int
+        Rows of ``bodies.table`` (``bodies.shape`` of the bodies to grow).
+    rate : callable
+        ``rate(s, t) -> ds/dt``, vectorised over ``s`` (m,) [-], ``t`` [s].
+    """
+
+    def __init__(self, rows, rate):
+        self.rows = np.atleast_1d(np.asarray(rows, dtype=np.int64))
+        self.rate = rate
+        self._base = None
+
+    def _bind(self, sim):
+        b = sim.bodies
+        ids = np.flatnonzero(np.isin(b.shape, self.rows))
+        s = b.table.scale[b.shape[ids]]
+        self._base = (ids, b.radius[ids] / s, b.mass[ids] / s ** b.dim,
+                      b.inertia[ids] / (s ** (b.dim + 2))[:, None])
+
+    def get(self, sim):
+        if self._base is None:
+            self._bind(sim)
+        return sim.bodies.table.scale[self.rows].copy()
+
+    def set(self, sim, y):
+        if np.any(y <= 0.0) or not np.all(np.isfinite(y)):
+            raise ValueError("ShapeScale drove a scale factor to zero, below or to NaN")
+        b = sim.bodies
+        b.table.scale[self.rows] = y
+        ids, r0, m0, i0 = self._base
+        s = b.table.scale[b.shape[ids]]
+        b.radius[ids] = r0 * s
+        free = ~b.is_fixed[ids]
+        b.mass[ids[free]] = (m0 * s ** b.dim)[free]
+        b.inertia[ids[free]] = (i0 * (s ** (b.dim + 2))[:, None])[free]
+
+    def rhs(self, y, t):
+        return np.asarray(self.rate(y, t), dtype=np.float64) * np.ones_like(y)

@@ -154,7 +154,7 @@ bulk_bodies = dem.Bodies.spheres(bulk_pos, radius=RADIUS, density=DENSITY)
 bulk_bodies.add_plane([0.0, 0.0, 0.0], [0.0, 0.0, 1.0])
 bulk_lid = bulk_bodies.add_plane([0.0, 0.0, BULK_SIZE[2]], [0.0, 0.0, -1.0],
                                  velocity=[0.0, 0.0, -LID_SPEED])
-bulk_box = dem.Box(lo=[0.0, 0.0, 0.0], hi=BULK_SIZE, periodic=[True, True, False])
+bulk_box = dem.Domain(lo=[0.0, 0.0, 0.0], hi=BULK_SIZE, periodic=[True, True, False])
 _, bulk_strain, _, bulk_stress, _ = compress(
     bulk_bodies, bulk_lid, BULK_SIZE[0] * BULK_SIZE[1], box=bulk_box)
 

@@ -96,3 +96,37 @@ def test_ex02_bulk_is_transversely_isotropic(ex02):
     np.testing.assert_allclose(s[:, 0, 0], s[:, 1, 1], rtol=0.0, atol=1e-9 * scale)
     for a, b in ((0, 1), (0, 2), (1, 2)):
         np.testing.assert_allclose(s[:, a, b], 0.0, atol=1e-9 * scale)
+
+
+# ------------------------------------------------------------------ ex03/ex04: polygons, polyhedra
+@pytest.fixture(scope="module")
+def ex03():
+    return run_example("ex03_polygons")
+
+
+@pytest.fixture(scope="module")
+def ex04():
+    return run_example("ex04_polyhedra")
+
+
+@pytest.mark.parametrize("name", ["ex03", "ex04"])
+def test_ex03_ex04_momentum_conserved(name, request):
+    ex = request.getfixturevalue(name)
+    scale = np.linalg.norm(ex["momentum_expected"])
+    dim = ex["momentum"].shape[1]
+    err = np.abs(ex["momentum"] - ex["momentum_expected"][:dim]).max()
+    assert err < 1e-12 * scale
+    l_series = ex["lz"][:, None] if name == "ex03" else ex["l_series"]
+    assert np.abs(l_series - l_series[0]).max() < 1e-9 * np.abs(l_series[0]).max()
+
+
+@pytest.mark.parametrize("name", ["ex03", "ex04"])
+def test_ex03_ex04_energy_only_dissipated(name, request):
+    ex = request.getfixturevalue(name)
+    assert ex["energy_rise"] < 1e-4
+    assert ex["dissipated"] > 0.05
+    assert ex["n_moving"] >= 3  # the shooter and at least two it hit
+
+
+def test_ex04_motion_stays_in_plane(ex04):
+    assert ex04["off_plane"] < 1e-12

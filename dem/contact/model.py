@@ -78,11 +78,11 @@ class ContactModel:
         """Fail at set-up, naming every material pair present that has no law."""
         from ..shapes import Shape
 
-        sph = np.unique(bodies.mat_id[bodies.kind == Shape.SPHERE])
+        sph = np.unique(bodies.mat_id[bodies.kind != Shape.PLANE])
         wal = np.unique(bodies.mat_id[bodies.kind == Shape.PLANE])
-        missing = [("sphere-sphere", a, b) for a in sph for b in sph
+        missing = [("particle-particle", a, b) for a in sph for b in sph
                    if a <= b and self.law_for("pp", a, b) is None]
-        missing += [("sphere-wall", a, b) for a in sph for b in wal
+        missing += [("particle-wall", a, b) for a in sph for b in wal
                     if self.law_for("pw", a, b) is None]
         if missing:
             names = ", ".join(f"{k} materials ({a}, {b})" for k, a, b in missing)
@@ -92,7 +92,7 @@ class ContactModel:
         """Largest normal or rotation-coupled tangential stiffness [N/m] in the scene."""
         from ..shapes import Shape
 
-        r = bodies.radius[bodies.kind == Shape.SPHERE]
+        r = bodies.radius[bodies.kind != Shape.PLANE]
         r_ref = float(r.min()) if r.size else 1.0
         # tangential spring acts on translation and rotation: 1 + m r^2 / I
         rot = 3.5 if bodies.dim == 3 else 3.0

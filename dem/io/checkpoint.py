@@ -48,6 +48,11 @@ _U1, _B = np.dtype(np.uint8), np.dtype(bool)
 #: simulation arrays, per pair and per wall pair: (name, trailing shape key, dtype)
 _PAIR_ARRAYS = (("hist", "3", _F8), ("touch", "", _U1), ("fpair", "d", _F8))
 _WALL_ARRAYS = (("whist", "3", _F8), ("wforce", "d", _F8), ("wtorque", "r", _F8))
+#: scenes with level-set shapes add: ADMM warm starts, iterations, contact geometry
+_SHAPE_PAIR_ARRAYS = (("warm", "16", _F8), ("iters", "", np.dtype(np.int64)),
+                      ("pgeom", "7", _F8), ("tpair", "2r", _F8))
+_SHAPE_WALL_ARRAYS = (("wwarm", "16", _F8), ("witers", "", np.dtype(np.int64)),
+                      ("wgeom", "7", _F8))
 
 
 def _body_spec(dim):
@@ -60,8 +65,19 @@ def _body_spec(dim):
             "normal": ((dim,), _F8), "density": ((), _F8)}
 
 
+_I8 = np.dtype(np.int64)
+#: shape-table arrays: (name, trailing shape, dtype, length: "ns", "ns+1" or a pool)
+_TABLE_SPEC = (("kind", (), _I8, "ns"), ("param", (4,), _F8, "ns"), ("scale", (), _F8, "ns"),
+               ("brad", (), _F8, "ns"), ("xform", (12,), _F8, "ns"),
+               ("vstart", (), _I8, "ns+1"), ("verts", (3,), _F8, "vstart"),
+               ("fstart", (), _I8, "ns+1"), ("faces", (4,), _F8, "fstart"),
+               ("tstart", (), _I8, "ns+1"), ("tris", (3,), _I8, "tstart"))
+
+
 def _trailing(key, dim):
-    return {"": (), "3": (3,), "d": (dim,), "r": (1 if dim == 2 else 3,)}[key]
+    nr = 1 if dim == 2 else 3
+    return {"": (), "3": (3,), "d": (dim,), "r": (nr,), "16": (16,), "7": (7,),
+            "2r": (2 * nr,)}[key]
 
 
 # ------------------------------------------------------------------ bodies
@@ -69,6 +85,58 @@ def _write_bodies(group, bodies):
     group.attrs["dim"] = int(bodies.dim)
     for name in Bodies.ARRAYS:
         group.create_dataset(name, data=getattr(bodies, name))
+    t = bodies.table
+    if t.n:
+        if np.any(t.kind == 5):
+            raise ValueError("bodies with a user-defined shape (CustomShape) cannot be "
+                             "written: their signed distance function is code, not data")
+        g = group.create_group("shape_table")
+        for name, _, _, _ in _TABLE_SPEC:
+            g.create_dataset(name, data=getattr(t, name))
+
+
+def _read_table(path, group, n_bodies_shape):
+    """The shape table from ``group`` (checked: dtypes, sizes, offsets, indices)."""
+    from ..shapes.table import ShapeTable
+
+    t = ShapeTable()
+    if "kind" not in group:
+        raise ValueError(f"{path}: bodies/shape_table/kind is missing")
+    ns = group["kind"].shape[0] if group["kind"].ndim == 1 else -1
+    if ns < 0:
+        raise ValueError(f"{path}: bodies/shape_table/kind must be one-dimensional")
+    for name, tail, dtype, length in _TABLE_SPEC:
+        if name not in group:
+            raise ValueError(f"{path}: bodies/shape_table/{name} is missing")
+        if length == "ns":
+            rows = ns
+        elif length == "ns+1":
+            rows = ns + 1
+        else:
+            start = getattr(t, length)
+            if start[0] != 0 or np.any(np.diff(start) < 0):
+                raise ValueError(f"{path}: bodies/shape_table/{length} is not a valid "
+                                 f"offset array")
+            rows = int(start[-1])
+        setattr(t, name, _checked(path, f"bodies/shape_table/{name}", group[name],
+                                  (rows, *tail), dtype))
+    if np.any((t.kind < 2) | (t.kind > 4)):
+        raise ValueError(f"{path}: bodies/shape_table/kind holds an unknown or "
+                         f"non-storable shape kind")
+    for s in range(ns):
+        nv = t.vstart[s + 1] - t.vstart[s]
+        tri = t.tris[t.tstart[s]:t.tstart[s + 1]]
+        if tri.size and (tri.min() < 0 or tri.max() >= nv):
+            raise ValueError(f"{path}: bodies/shape_table/tris of row {s} index past "
+                             f"its {nv} vertices")
+    if not (np.all(np.isfinite(t.verts)) and np.all(np.isfinite(t.faces))
+            and np.all(t.scale > 0.0) and np.all(t.brad > 0.0)):
+        raise ValueError(f"{path}: bodies/shape_table holds non-finite or non-positive "
+                         f"geometry")
+    if n_bodies_shape.size and n_bodies_shape.max() >= ns:
+        raise ValueError(f"{path}: bodies/shape points past the {ns} rows of the table")
+    t.shapes = [None] * ns
+    return t
 
 
 def _read_bodies(path, group):
@@ -84,7 +152,14 @@ def _read_bodies(path, group):
         if name not in group:
             raise ValueError(f"{path}: bodies/{name} is missing")
         arrays[name] = _checked(path, f"bodies/{name}", group[name], (n, *tail), dtype)
-    return Bodies(dim=dim, **arrays)
+    table = None
+    if "shape" in group:  # files written before shapes existed have none
+        arrays["shape"] = _checked(path, "bodies/shape", group["shape"], (n,), _I4)
+        if "shape_table" in group:
+            table = _read_table(path, group["shape_table"], arrays["shape"])
+        elif np.any(arrays["shape"] >= 0):
+            raise ValueError(f"{path}: bodies/shape refers to a shape table that is missing")
+    return Bodies(dim=dim, table=table, **arrays)
 
 
 def _checked(path, name, dataset, shape, dtype):
@@ -175,6 +250,9 @@ def save_checkpoint(sim, path):
         f.attrs["n_builds"] = int(nl.n_builds)
         f.attrs["capacity"] = int(getattr(nl, "_cap", 0))
         f.attrs["has_box"] = sim.box is not None
+        f.attrs["detection"] = str(sim.detection)
+        f.attrs["admm_tol"] = float(sim.admm_tol)
+        f.attrs["admm_max_iter"] = int(sim.admm_max_iter)
         f.create_dataset("gravity", data=np.asarray(sim.gravity, dtype=np.float64))
         f.create_dataset("wall_work", data=np.asarray(sim.wall_work, dtype=np.float64))
         _write_bodies(f.create_group("bodies"), sim.bodies)
@@ -191,12 +269,16 @@ def save_checkpoint(sim, path):
             if hasattr(sim, name):  # "touch" is absent from older cores
                 g.create_dataset(name, data=getattr(sim, name))
         g.create_dataset("radius_ref", data=sim._radius_ref)
-        # the inner list decides when the Verlet list is rebuilt: part of the state
-        n_inner = int(sim._n_inner[0])
-        g.attrs["n_inner"] = n_inner
-        g.attrs["n_internal"] = int(sim._n_inner[1])
-        g.create_dataset("inner", data=sim._inner[:max(n_inner, 0)])
-        g.create_dataset("pos_inner", data=sim._pos_inner)
+        if sim.shaped:
+            for name, _, _ in _SHAPE_PAIR_ARRAYS + _SHAPE_WALL_ARRAYS:
+                g.create_dataset(name, data=getattr(sim, name))
+        else:
+            # the inner list decides when the Verlet list is rebuilt: part of the state
+            n_inner = int(sim._n_inner[0])
+            g.attrs["n_inner"] = n_inner
+            g.attrs["n_internal"] = int(sim._n_inner[1])
+            g.create_dataset("inner", data=sim._inner[:max(n_inner, 0)])
+            g.create_dataset("pos_inner", data=sim._pos_inner)
         g = f.create_group("model")
         g.create_dataset("params_pp", data=sim._params_pp)
         g.create_dataset("params_pw", data=sim._params_pw)
@@ -242,7 +324,9 @@ def load_checkpoint(path, model, observers=(), controllers=(), state_objects=())
                      damping=a["damping"], skin=a["skin"], box=box,
                      neighbor_backend=a["backend"], overlap_limit=a["overlap_limit"],
                      observers=observers, controllers=controllers,
-                     state_objects=state_objects, allow_unstable_dt=True)
+                     state_objects=state_objects, allow_unstable_dt=True,
+                     detection=a["detection"], admm_tol=a["admm_tol"],
+                     admm_max_iter=a["admm_max_iter"])
     sim.step = a["step"]
     sim.time = a["time"]
     sim.wall_work = state["wall_work"]
@@ -255,8 +339,12 @@ def load_checkpoint(path, model, observers=(), controllers=(), state_objects=())
         setattr(sim, name, value)
     sim._radius_ref = state["radius_ref"]
     sim._refresh_tables()
-    sim._index()
-    sim._restore_inner(*state["inner"])
+    if sim.shaped:
+        sim._old_warm = (sim.warm, sim.wwarm)
+        sim._shape_index()
+    else:
+        sim._index()
+        sim._restore_inner(*state["inner"])
     sim._primed = True
     for name in ("params_pp", "params_pw"):
         saved, now = state["model"].get(name), getattr(sim, "_" + name)
@@ -275,7 +363,12 @@ def _read_checkpoint(path, f):
              "overlap_limit": float(f.attrs["overlap_limit"]),
              "skin": float(f.attrs["skin"]), "n_builds": int(f.attrs["n_builds"]),
              "capacity": int(f.attrs.get("capacity", 0)),
-             "has_box": bool(f.attrs["has_box"])}
+             "has_box": bool(f.attrs["has_box"]),
+             "detection": str(f.attrs.get("detection", "auto")),
+             "admm_tol": float(f.attrs.get("admm_tol", 1e-8)),
+             "admm_max_iter": int(f.attrs.get("admm_max_iter", 200))}
+    if isinstance(f.attrs.get("detection"), bytes):
+        attrs["detection"] = f.attrs["detection"].decode()
     backend = f.attrs["backend"]
     attrs["backend"] = backend.decode() if isinstance(backend, bytes) else str(backend)
     d = attrs["dim"]
@@ -308,6 +401,13 @@ def _read_checkpoint(path, f):
                                           (rows, *_trailing(tail, d)), dtype)
             elif name != "touch":
                 raise ValueError(f"{path}: contacts/{name} is missing")
+    if bodies.has_shapes:
+        for rows, spec in ((m, _SHAPE_PAIR_ARRAYS), (mw, _SHAPE_WALL_ARRAYS)):
+            for name, tail, dtype in spec:
+                if name not in g:
+                    raise ValueError(f"{path}: contacts/{name} is missing")
+                contacts[name] = _checked(path, f"contacts/{name}", g[name],
+                                          (rows, *_trailing(tail, d)), dtype)
     radius_ref = _checked(path, "contacts/radius_ref", g["radius_ref"], (n,), _F8)
     n_inner = int(g.attrs.get("n_inner", -1))
     n_internal = int(g.attrs.get("n_internal", -1))

@@ -3,20 +3,35 @@
 :class:`H5Writer` is an observer: whenever its trigger fires it appends one frame.
 
 File layout (one group per frame, because the number of contacts changes from frame
-to frame; frame groups are numbered ``000000, 000001, ...`` in the order written)::
+to frame; frame groups are numbered ``000000, 000001, ...`` in the order written).
+A frame holds every *particle*: every body that is not a wall (spheres and level-set
+shapes alike), in body order::
 
     /                       attrs: format = "dem.h5writer", version, dim, n_frames
-    /frames/000000/         attrs: step, time [s], dt [s], dim,
-                                   n_spheres, n_walls, n_contacts
-        id       (n,)    int32    body index of each sphere in ``sim.bodies``
-        pos      (n, d)  float64  [m]
+    /frames/000000/         attrs: step, time [s], dt [s], dim, n_particles,
+                                   n_spheres (particles of kind SPHERE), n_walls,
+                                   n_contacts, n_surface_cells
+        id       (n,)    int32    body index of each particle in ``sim.bodies``
+        kind     (n,)    int32    :class:`~dem.shapes.Shape` code of each particle
+        pos      (n, d)  float64  [m], centre of mass
         vel      (n, d)  float64  [m/s]
         rot      (n, 4) or (n, 1) float64  quaternion (w, x, y, z) in 3D,
                                            angle [rad] in 2D
         ang_vel  (n, 3) or (n, 1) float64  [rad/s]
-        radius   (n,)    float64  [m]
+        radius   (n,)    float64  [m], the radius of spheres, the bounding radius of
+                                  other shapes
         force    (n, d)  float64  [N], total force of the last step
         walls/   id (nw,) int32, pos (nw, d) [m] (a point of the plane), normal (nw, d)
+        surface/   (only in frames holding boxes, polygons or polyhedra)
+            points   (np, 3)  float64  [m], world-frame vertices (z = 0 in 2D), body
+                                       after body, each in its shape-table order
+            cells    (nt, 3)  int32    triangles (rows of ``points``): the boundary
+                                       triangles of 3D shapes (counter-clockwise seen
+                                       from outside), a fan over each 2D polygon
+                                       (counter-clockwise seen from +z)
+            body     (nt,)    int32    body index of each triangle
+            vel      (nt, 3)  float64  [m/s], velocity of the triangle's body (centre
+                                       of mass; z = 0 in 2D)
         contacts/  (only when ``contacts=True``; touching contacts only)
             i, j     (nc,)   int32  body indices (``j`` is a wall when ``is_wall``)
             normal   (nc, d) float64 unit normal from i to j
@@ -26,6 +41,9 @@ to frame; frame groups are numbered ``000000, 000001, ...`` in the order written
             is_wall  (nc,)   bool
     /xdmf/zeros  (n_max, 1) float64, 2D files only: the zero third component that
                  the XDMF file joins to 2D vectors (ParaView draws only 3-vectors)
+
+Custom shapes (a user SDF) have no vertices: they appear as particles only (a glyph at
+``pos`` of size ``radius`` in ParaView), never in ``surface/``.
 
 Crash safety: frames are written to ``path + ".tmp"`` (flushed after every frame) and
 the file is renamed to ``path`` with :func:`os.replace` only by :meth:`H5Writer.close`,
@@ -46,7 +64,7 @@ from ..shapes import Shape
 log = logging.getLogger(__name__)
 
 FORMAT = "dem.h5writer"
-VERSION = 1
+VERSION = 2  # 2: frames hold every particle (kind, surface/), not spheres only
 
 
 def publish(tmp_path, path):
@@ -65,8 +83,107 @@ def frame_name(index):
     return f"{int(index):06d}"
 
 
+#: shape kinds drawn as surfaces: those whose shape-table row holds vertices
+SURFACE_KINDS = (Shape.BOX, Shape.POLYGON, Shape.POLYHEDRON)
+
+
+def rotation_matrices(rot):
+    """Body-to-world rotation matrices of orientations ``rot``.
+
+    Parameters
+    ----------
+    rot : ndarray, shape (n, 1) or (n, 4), float64
+        Angles [rad] (2D) or unit quaternions (w, x, y, z) (3D), as in ``Bodies.rot``.
+
+    Returns
+    -------
+    ndarray, shape (n, 3, 3), float64
+        In 2D the rotation about z.
+
+    Examples
+    --------
+    >>> r = rotation_matrices(np.array([[np.pi / 2]]))
+    >>> np.round(r[0] @ [1.0, 0.0, 0.0], 12).tolist()
+    [0.0, 1.0, 0.0]
+    """
+    rot = np.asarray(rot, dtype=np.float64)
+    n = rot.shape[0]
+    out = np.zeros((n, 3, 3))
+    if rot.shape[1] == 1:
+        c, s = np.cos(rot[:, 0]), np.sin(rot[:, 0])
+        out[:, 0, 0], out[:, 0, 1] = c, -s
+        out[:, 1, 0], out[:, 1, 1] = s, c
+        out[:, 2, 2] = 1.0
+        return out
+    w, x, y, z = rot.T
+    out[:, 0] = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z),
+                          2 * (x * z + w * y)], axis=1)
+    out[:, 1] = np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z),
+                          2 * (y * z - w * x)], axis=1)
+    out[:, 2] = np.stack([2 * (x * z - w * y), 2 * (y * z + w * x),
+                          1 - 2 * (x * x + y * y)], axis=1)
+    return out
+
+
+def shape_surfaces(bodies):
+    """World-frame triangle surfaces of the boxes, polygons and polyhedra of ``bodies``.
+
+    Vertex ``v`` of body ``b`` (shape row ``s``) sits at
+    ``pos[b] + R(rot[b]) @ (scale[s] * verts[v])``. 3D shapes bring their boundary
+    triangles (``ShapeTable.tris``); a 2D polygon (or rectangle) is fanned from its
+    first vertex. Bodies come in ascending index order, each with a contiguous block of
+    points and of triangles. Custom shapes (no vertices) are left out.
+
+    Parameters
+    ----------
+    bodies : dem.Bodies
+
+    Returns
+    -------
+    dict
+        ``points`` (np, 3) float64 [m], ``cells`` (nt, 3) int32 rows of ``points``,
+        ``body`` (nt,) int32 body indices, ``vel`` (nt, 3) float64 [m/s] the body's
+        velocity (z = 0 in 2D). Empty arrays when there is nothing to draw.
+    """
+    t, d = bodies.table, bodies.dim
+    ids = np.flatnonzero(np.isin(bodies.kind, SURFACE_KINDS) & (bodies.shape >= 0))
+    rows = bodies.shape[ids].astype(np.int64)
+    n_verts = t.vstart[rows + 1] - t.vstart[rows]
+    n_tris = (t.tstart[rows + 1] - t.tstart[rows]) if d == 3 else n_verts - 2
+    keep = (n_verts >= 3) & (n_tris > 0)
+    ids, rows, n_verts, n_tris = ids[keep], rows[keep], n_verts[keep], n_tris[keep]
+    p_off = np.concatenate(([0], np.cumsum(n_verts)))
+    c_off = np.concatenate(([0], np.cumsum(n_tris)))
+    points = np.zeros((p_off[-1], 3))
+    cells = np.zeros((c_off[-1], 3), np.int32)
+    pos3 = np.zeros((bodies.n, 3))
+    pos3[:, :d] = bodies.pos
+    for s in np.unique(rows):
+        here = np.flatnonzero(rows == s)  # bodies sharing shape row s
+        b = ids[here]
+        local = t.scale[s] * t.verts[t.vstart[s]:t.vstart[s + 1]]
+        world = pos3[b, None, :] + np.einsum("bij,vj->bvi",
+                                             rotation_matrices(bodies.rot[b]), local)
+        points[p_off[here][:, None] + np.arange(local.shape[0])] = world
+        if d == 3:
+            tris = t.tris[t.tstart[s]:t.tstart[s + 1]]
+        else:
+            k = np.arange(1, local.shape[0] - 1)
+            tris = np.stack([np.zeros_like(k), k, k + 1], axis=1)
+        cells[c_off[here][:, None] + np.arange(tris.shape[0])] = (
+            p_off[here][:, None, None] + tris[None])
+    body = np.repeat(ids, n_tris).astype(np.int32)
+    vel = np.zeros((body.size, 3))
+    vel[:, :d] = bodies.vel[body]
+    return {"points": points, "cells": cells, "body": body, "vel": vel}
+
+
 class H5Writer:
     """Observer writing particle frames (and contacts) to an HDF5 file.
+
+    Every body but the walls is a particle; boxes, polygons and polyhedra also get
+    their world-frame surfaces as triangles (:func:`shape_surfaces`), which the XDMF
+    file shows as a second grid, ``shapes``.
 
     Parameters
     ----------
@@ -123,26 +240,34 @@ class H5Writer:
             raise ValueError(f"frame is {b.dim}D but {self.path} holds "
                              f"{self._dim}D frames")
         g = self._frames.create_group(frame_name(self.n_frames))
-        sph = np.flatnonzero(b.kind == Shape.SPHERE)
+        par = np.flatnonzero(b.kind != Shape.PLANE)
         wal = np.flatnonzero(b.kind == Shape.PLANE)
         g.attrs["step"] = int(sim.step)
         g.attrs["time"] = float(sim.time)
         g.attrs["dt"] = float(sim.dt)
         g.attrs["dim"] = int(b.dim)
-        g.attrs["n_spheres"] = sph.size
+        g.attrs["n_particles"] = par.size
+        g.attrs["n_spheres"] = int(np.count_nonzero(b.kind == Shape.SPHERE))
         g.attrs["n_walls"] = wal.size
-        g.create_dataset("id", data=sph.astype(np.int32))
+        g.create_dataset("id", data=par.astype(np.int32))
+        g.create_dataset("kind", data=b.kind[par].astype(np.int32))
         for name in ("pos", "vel", "rot", "ang_vel", "radius", "force"):
-            g.create_dataset(name, data=getattr(b, name)[sph])
+            g.create_dataset(name, data=getattr(b, name)[par])
         w = g.create_group("walls")
         w.create_dataset("id", data=wal.astype(np.int32))
         w.create_dataset("pos", data=b.pos[wal])
         w.create_dataset("normal", data=b.normal[wal])
+        surf = shape_surfaces(b)
+        if surf["cells"].shape[0]:
+            s = g.create_group("surface")
+            for name, data in surf.items():
+                s.create_dataset(name, data=data)
+        g.attrs["n_surface_cells"] = surf["cells"].shape[0]
         n_c = 0
         if self.contacts:
             n_c = self._write_contacts(g.create_group("contacts"), sim.contacts())
         g.attrs["n_contacts"] = n_c
-        self._n_max = max(self._n_max, sph.size)
+        self._n_max = max(self._n_max, par.size)
         self.n_frames += 1
         self._file.flush()
 
@@ -190,8 +315,9 @@ class H5Writer:
 def read_frame(path, index):
     """One frame (``index`` 0, 1, ...; negative counts from the end) as a dict.
 
-    Keys: the frame's attributes (``step``, ``time``, ``dt``, ...), its sphere datasets
-    (``pos``, ``vel``, ...), ``walls`` and, when written, ``contacts`` (dicts).
+    Keys: the frame's attributes (``step``, ``time``, ``dt``, ...), its particle
+    datasets (``id``, ``kind``, ``pos``, ``vel``, ...), ``walls`` and, when written,
+    ``surface`` and ``contacts`` (dicts of arrays; see the module docstring).
     """
     with h5py.File(path, "r") as f:
         if f.attrs.get("format") != FORMAT:

@@ -9,15 +9,24 @@ shapes themselves.
 
 from enum import IntEnum
 
+from .box import Box
+from .custom import CustomShape
 from .plane import Plane, sdf_plane
+from .polygon import ConvexPolygon
+from .polyhedron import ConvexPolyhedron
 from .sphere import Sphere, sdf_sphere
 
 
 class Shape(IntEnum):
     """Shape kinds; the pair of kinds decides the contact bucket (geometry kernel)."""
 
-    SPHERE = 0  # a disk in 2D
-    PLANE = 1   # a half-space wall (a line in 2D)
+    SPHERE = 0      # a disk in 2D
+    PLANE = 1       # a half-space wall (a line in 2D)
+    BOX = 2         # a rectangle in 2D
+    POLYGON = 3     # convex, 2D
+    POLYHEDRON = 4  # convex, 3D
+    CUSTOM = 5      # a user-defined SDF
 
 
-__all__ = ["Shape", "Sphere", "Plane", "sdf_sphere", "sdf_plane"]
+__all__ = ["Box", "ConvexPolygon", "ConvexPolyhedron", "CustomShape", "Plane", "Shape",
+           "Sphere", "sdf_plane", "sdf_sphere"]

@@ -211,7 +211,7 @@ def test_missing_wall_law_is_named_at_setup():
     bodies = pair()
     bodies.add_plane([0.0, 0.0, -R], [0.0, 0.0, 1.0], mat_id=3)
     model = dem.ContactModel(LAW, wall_law={(0, 2): LAW})
-    with pytest.raises(ValueError, match=r"sphere-wall materials \(0, 3\)"):
+    with pytest.raises(ValueError, match=r"particle-wall materials \(0, 3\)"):
         dem.Simulation(bodies, model)
 
 

@@ -46,7 +46,7 @@ def make_sim(dim, periodic=False, seed=1):
         half = 0.5 * h * np.array(shape[:-1])
         lo = np.append(-half, 0.0)
         hi = np.append(half, 0.0)
-        box = dem.Box(lo, hi, np.append(np.ones(dim - 1, bool), False))
+        box = dem.Domain(lo, hi, np.append(np.ones(dim - 1, bool), False))
     return dem.Simulation(b, LAW, gravity=-9.81 * up, damping=0.1, box=box)
 
 

@@ -65,6 +65,11 @@ def main():
 
     admm = make_admm(superellipsoid)
 
+    @numba.njit
+    def _store(out, k, a0, a1, a2, a3, a4, a5, a6, a7):
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = a0, a1, a2, a3
+        out[k, 4], out[k, 5], out[k, 6], out[k, 7] = a4, a5, a6, a7
+
     def shapes():
         ang = np.sort(rng.uniform(0, 2 * np.pi, 7))
         poly2 = dem.ConvexPolygon(0.01 * np.stack([np.cos(ang), np.sin(ang)], 1))
@@ -81,16 +86,14 @@ def main():
     def run_exact(dim, pos, rot, geo, out):
         for k in range(out.shape[0]):
             r = polytope_contact(dim, 0, 2 * k, 0, 2 * k + 1, 0.0, 0.0, 0.0, pos, rot, geo)
-            for c in range(8):
-                out[k, c] = r[c]
+            _store(out, k, r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7])
 
     @numba.njit
     def run_admm(dim, kind, pos, rot, normal, geo, warm, tol, out, iters):
         for k in range(out.shape[0]):
             r = admm(dim, kind, 0, 2 * k, kind, 0, 2 * k + 1, 0.0, 0.0, 0.0, pos, rot,
                      normal, geo, warm, k, tol, 500)
-            for c in range(8):
-                out[k, c] = r[c + 1]
+            _store(out, k, r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8])
             iters[k] = r[8]
 
     @numba.njit
@@ -98,8 +101,7 @@ def main():
         for k in range(out.shape[0]):
             r = nodes_contact(dim, 2 * k, nodes, kind, 0, 2 * k + 1, 0.0, 0.0, 0.0, pos,
                               rot, normal, geo)
-            for c in range(8):
-                out[k, c] = r[c]
+            _store(out, k, r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7])
 
     def scene(dim, shape, m):
         """2m bodies: pairs (2k, 2k+1) at random poses; B on a random direction."""
@@ -293,17 +295,23 @@ def _flowing_assembly():
     b.add_plane([0, 0], [1, 0])
     b.add_plane([0.22, 0], [-1, 0])
     sim = dem.Simulation(b, dem.LinearSpring(kn=1e4, kt=5e3, mu=0.4, restitution=0.3),
-                         gravity=[0, -9.81], detection="admm", admm_tol=1e-8, threads=1)
+                         gravity=[0, -9.81], detection="admm", admm_tol=1e-8,
+                         admm_max_iter=1000, threads=1)
     hist = np.zeros(64, np.int64)
+    failure = None
     for _ in range(C.env_int("FLOW_RECORDS", 60)):
-        sim.run(50)
+        try:
+            sim.run(50)
+        except dem.SimulationError as err:  # reported, not hidden
+            failure = str(err)
+            break
         for it, geom in ((sim.iters, sim.pgeom), (sim.witers, sim.wgeom)):
             touching = geom[:, 0] > 0.0
             hist += np.bincount(np.minimum(it[touching], 63), minlength=64)
     samples = int(hist.sum())
     mean = float((hist * np.arange(64)).sum() / max(samples, 1))
     return {"bodies": n, "steps": sim.step, "samples": samples, "mean_iterations": mean,
-            "histogram": hist.tolist(), "tol": 1e-8,
+            "histogram": hist.tolist(), "tol": 1e-8, "max_iter": 1000, "failure": failure,
             "share_at_most_2": float(hist[:3].sum() / max(samples, 1))}
 
 

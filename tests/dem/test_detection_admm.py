@@ -5,7 +5,8 @@ closed form; polytope pairs by ``scipy.optimize.linprog`` on the contract's prob
 and P2 written with the faces ("minimise t s.t. n_f . x - t <= o_f for B's faces, x in
 A", and the same with the roles swapped); on a crease the gradient is the faces'
 combination given by the LP's multipliers (the KKT subgradient: the common
-perpendicular of two edges). The surface-node baseline must get better with more nodes. Seeds are fixed; tolerances are relative to the smaller bounding radius ``L``.
+perpendicular of two edges). The surface-node baseline must get better with more nodes.
+Seeds are fixed; tolerances are relative to the smaller bounding radius ``L``.
 """
 
 import itertools

@@ -32,7 +32,9 @@ a lower bound of the optimum; the LP's point, projected onto C, is accepted when
 there is within ``tol L`` of ``tau`` (a certificate). A polytope's optimum is found
 this way as soon as its faces are known; curved shapes never pass and stay with ADMM.
 P1 and P2 run in turns, one iteration each, so that each LP knows the faces the other
-problem's prox met.
+problem's prox met. A problem stops as not needed once the other converged with a
+negative depth (convex bodies apart), or once its LP bound puts it below the other's
+converged depth.
 
 Stopping. The primal residual ``r = |x - z|`` and the dual residual ``s = rho |z -
 z_prev|`` (and ``|z - z_prev|`` itself when ``rho < 1``) below ``tol L``; or ``r`` is,

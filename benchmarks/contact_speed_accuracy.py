@@ -35,7 +35,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
-import _common as C  # noqa: E402
+import _common as C
 
 OUT = C.RESULTS / "contact_speed_accuracy.json"
 TOLS = (1e-2, 1e-3, 1e-4, 1e-6, 1e-8, 1e-10)
@@ -51,7 +51,6 @@ def main():
     from dem.contact.detection.admm import make_admm
     from dem.contact.detection.nodes import nodes_as3, nodes_contact, surface_nodes
     from dem.contact.detection.polytope import polytope_contact
-    from dem.state import quat_to_matrix
 
     m_pairs = C.env_int("M", 400)
     reps = C.env_int("REPS", 5)

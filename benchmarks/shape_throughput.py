@@ -12,7 +12,6 @@ the share of each detection method, and the 2-thread speed-up. Contact detection
 exact polytope solver (the default); ``DETECTION=admm`` times ADMM instead.
 """
 
-import json
 import os
 import sys
 import time
@@ -20,7 +19,7 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import _common as C  # noqa: E402
+import _common as C
 
 OUT = C.RESULTS / "shape_throughput.json"
 RHO = 2500.0
@@ -182,4 +181,4 @@ if __name__ == "__main__":
 
     main()
 else:
-    import numpy as np  # noqa: F811
+    import numpy as np

@@ -33,6 +33,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/dt_speed_accuracy.py
 	$(BIN)/python benchmarks/neighbor_backends.py
 	$(BIN)/python benchmarks/step_profile.py
+	$(BIN)/python benchmarks/contact_speed_accuracy.py
+	$(BIN)/python benchmarks/shape_throughput.py
 
 clean:
 	rm -rf $(VENV) .numba_cache .pytest_cache output

@@ -434,16 +434,16 @@ class Simulation:
         b, nl = self.bodies, self.neighbors
         n, m, mw = b.n, nl.pairs.shape[0], nl.wall_pairs.shape[0]
         kinds = b.kind
-        keys = {k: q for q, k in enumerate(self._bucket_keys)}
-        ki, kj = kinds[nl.pairs[:, 0]], kinds[nl.pairs[:, 1]]
-        code = np.array([keys[(min(x, y), max(x, y))] for x, y in zip(ki, kj)],
-                        np.int64) if m else np.zeros(0, np.int64)
+        lut = np.full((len(Shape), len(Shape)), -1, np.int64)  # (kind, kind) -> bucket
+        for q, (ka, kb) in enumerate(self._bucket_keys):
+            lut[ka, kb] = lut[kb, ka] = q
+        code = lut[kinds[nl.pairs[:, 0]], kinds[nl.pairs[:, 1]]]
         self._order = np.argsort(code, kind="stable").astype(np.int64)
         self._bstart = np.searchsorted(code[self._order],
                                        np.arange(len(self._bucket_keys) + 1)).astype(np.int64)
-        wkeys = {k: q for q, k in enumerate(self._wall_kinds)}
-        wcode = np.array([wkeys[int(x)] for x in kinds[nl.wall_pairs[:, 0]]], np.int64) \
-            if mw else np.zeros(0, np.int64)
+        wlut = np.full(len(Shape), -1, np.int64)
+        wlut[self._wall_kinds] = np.arange(len(self._wall_kinds))
+        wcode = wlut[kinds[nl.wall_pairs[:, 0]]]
         self._worder = np.argsort(wcode, kind="stable").astype(np.int64)
         self._wbstart = np.searchsorted(wcode[self._worder],
                                         np.arange(len(self._wall_kinds) + 1)).astype(np.int64)

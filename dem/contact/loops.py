@@ -225,14 +225,14 @@ def _drift_body(b, dim, dt, half, pos, vel, rot, ang_vel, force, torque, inv_mas
 
 
 @kernel(inline=True)
-def _finish_body(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, mass,
-                 inv_mass, inv_inertia, is_fixed, vel, ang_vel, force, torque, status_out):
-    """Add gravity and local damping to body b's contact force, store it, half kick.
+def body_force(b, dim, fx, fy, fz, tx, ty, tz, gravity, damping, mass, is_fixed, vel,
+               ang_vel, force, torque, status_out):
+    """Add gravity and local damping to body b's contact force and torque and store them.
 
-    A fixed body keeps the bare contact force on it and does not move.
+    A fixed body keeps the bare contact force. Flags a non-finite result. Returns the
+    stored ``(fx, fy, fz, tx, ty, tz)``.
     """
-    free = not is_fixed[b]
-    if free:
+    if not is_fixed[b]:
         mb = mass[b]
         fx += mb * gravity[0]
         fy += mb * gravity[1]
@@ -257,7 +257,17 @@ def _finish_body(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, m
         force[b, 2] = fz
         torque[b, 1] = ty
         torque[b, 2] = tz
-    if kick and free:
+    return fx, fy, fz, tx, ty, tz
+
+
+@kernel(inline=True)
+def _finish_body(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, mass,
+                 inv_mass, inv_inertia, is_fixed, vel, ang_vel, force, torque, status_out):
+    """:func:`body_force`, then the second half kick (spheres: isotropic inertia)."""
+    fx, fy, fz, tx, ty, tz = body_force(b, dim, fx, fy, fz, tx, ty, tz, gravity, damping,
+                                        mass, is_fixed, vel, ang_vel, force, torque,
+                                        status_out)
+    if kick and not is_fixed[b]:
         vel[b, 0] += half * fx * inv_mass[b]
         vel[b, 1] += half * fy * inv_mass[b]
         ang_vel[b, 0] += half * tx * inv_inertia[b, 0]

@@ -30,7 +30,6 @@ import math
 import types
 
 import numba
-import numpy as np
 
 from .._jit import kernel
 from ..shapes.table import (
@@ -46,7 +45,7 @@ from ..shapes.table import (
 from .detection.admm import admm_contact, make_admm
 from .detection.analytic import sphere_box, sphere_polytope
 from .detection.polytope import polytope_contact, polytope_plane
-from .loops import NONFINITE, OK, OVERLAP, REBUILD, _apply_law
+from .loops import NONFINITE, OK, OVERLAP, REBUILD, _apply_law, body_force
 
 #: detection methods
 M_SPHERES, M_SPHERE_BOX, M_SPHERE_POLY, M_POLY, M_ADMM = 0, 1, 2, 3, 4
@@ -148,8 +147,8 @@ def _kick_rotation(dim, b, half, rot, ang_vel, torque, inv_inertia):
 @kernel(inline=True)
 def _drift_rigid(b, dim, dt, half, pos, vel, rot, ang_vel, force, torque, inv_mass,
                  inv_inertia, is_fixed):
-    """Half kick and drift of body b; zeroes its force and torque. Returns |dx|^2 of
-    the step (not used) -- the caller checks the list against ``pos_ref``."""
+    """Half kick and drift of body b; zeroes its force and torque (the caller checks
+    the displacement against the neighbour list)."""
     if is_fixed[b]:
         for a in range(dim):
             pos[b, a] += dt * vel[b, a]
@@ -562,34 +561,12 @@ def wall_force(dim, code, k, i, w, ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel
 def _finish_rigid(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, mass,
                   inv_mass, inv_inertia, is_fixed, rot, vel, ang_vel, force, torque,
                   status_out):
-    """Gravity, local damping, store, second half kick (anisotropic rotation in 3D)."""
-    free = not is_fixed[b]
-    if free:
-        mb = mass[b]
-        fx += mb * gravity[0]
-        fy += mb * gravity[1]
-        if dim == 3:
-            fz += mb * gravity[2]
-        if damping > 0.0:
-            fx -= damping * abs(fx) * np.sign(vel[b, 0])
-            fy -= damping * abs(fy) * np.sign(vel[b, 1])
-            tx -= damping * abs(tx) * np.sign(ang_vel[b, 0])
-            if dim == 3:
-                fz -= damping * abs(fz) * np.sign(vel[b, 2])
-                ty -= damping * abs(ty) * np.sign(ang_vel[b, 1])
-                tz -= damping * abs(tz) * np.sign(ang_vel[b, 2])
-        if not (math.isfinite(fx) and math.isfinite(fy) and math.isfinite(fz)
-                and math.isfinite(tx) and math.isfinite(ty) and math.isfinite(tz)):
-            status_out[0] = NONFINITE
-            status_out[1] = b
-    force[b, 0] = fx
-    force[b, 1] = fy
-    torque[b, 0] = tx
-    if dim == 3:
-        force[b, 2] = fz
-        torque[b, 1] = ty
-        torque[b, 2] = tz
-    if kick and free:
+    """:func:`~dem.contact.loops.body_force`, then the second half kick (anisotropic
+    rotation in 3D)."""
+    fx, fy, fz, tx, ty, tz = body_force(b, dim, fx, fy, fz, tx, ty, tz, gravity, damping,
+                                        mass, is_fixed, vel, ang_vel, force, torque,
+                                        status_out)
+    if kick and not is_fixed[b]:
         vel[b, 0] += half * fx * inv_mass[b]
         vel[b, 1] += half * fy * inv_mass[b]
         if dim == 3:

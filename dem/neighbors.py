@@ -17,6 +17,7 @@ import logging
 import numpy as np
 
 from ._jit import kernel
+from .boundary import PeriodicCell
 
 log = logging.getLogger(__name__)
 
@@ -24,11 +25,14 @@ log = logging.getLogger(__name__)
 # --------------------------------------------------------------------------- kernels
 @kernel
 def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodic,
-                     pairs_out, img_out):
+                     hmat, hinv, triclinic, pairs_out, img_out):
     """Half Verlet list over a cell list; returns the number of pairs found.
 
     ``lo`` (d,), ``length`` (d,) bound the grid, ``n_cells`` (d,) int64 cells per axis,
     ``periodic`` (d,) bool. Positions on periodic axes must lie in ``[lo, lo + length)``.
+    ``triclinic``: the grid lives in the fractional coordinates ``hinv (x - lo)`` of
+    a periodic cell with matrix ``hmat`` (every axis periodic, ``length`` unused), and
+    images are the nearest in fractional terms, ``x_j - x_i + hmat img``.
     Writes up to ``pairs_out.shape[0]`` pairs; a return value larger than that means
     the buffers overflowed and nothing past the capacity was written.
     """
@@ -45,10 +49,15 @@ def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodi
         i = sphere_ids[s]
         c = 0
         for a in range(d):
-            f = (pos[i, a] - lo[a]) / length[a] * n_cells[a]
+            if triclinic:
+                f = 0.0
+                for e in range(d):
+                    f += hinv[a, e] * (pos[i, e] - lo[e])
+                f *= n_cells[a]
+            else:
+                f = (pos[i, a] - lo[a]) / length[a] * n_cells[a]
             ci = int(np.floor(f))
-            if ci < 0:
-                ci = 0
+            ci = max(ci, 0)
             if ci >= n_cells[a]:
                 ci = n_cells[a] - 1
             coords[s, a] = ci
@@ -91,6 +100,7 @@ def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodi
     order = np.empty(64, np.int64)
     n_pairs = 0
     cell = np.empty(d, np.int64)
+    shift = np.zeros(d)
     for s in range(ns):
         i = sphere_ids[s]
         m = 0
@@ -115,12 +125,27 @@ def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodi
                     continue
                 cut = radius[i] + radius[j] + skin
                 r2 = 0.0
-                for a in range(d):
-                    dx = pos[j, a] - pos[i, a]
-                    if periodic[a]:
-                        sh = np.floor(dx / length[a] + 0.5)
-                        dx -= sh * length[a]
-                    r2 += dx * dx
+                if triclinic:
+                    for a in range(d):
+                        ds = 0.0
+                        for e in range(d):
+                            ds += hinv[a, e] * (pos[j, e] - pos[i, e])
+                        shift[a] = np.floor(ds + 0.5)
+                    for a in range(d):
+                        dx = pos[j, a] - pos[i, a]
+                        for e in range(d):
+                            dx -= hmat[a, e] * shift[e]
+                        r2 += dx * dx
+                else:
+                    for a in range(d):
+                        dx = pos[j, a] - pos[i, a]
+                        if periodic[a]:
+                            sh = np.floor(dx / length[a] + 0.5)
+                            dx -= sh * length[a]
+                            shift[a] = sh
+                        else:
+                            shift[a] = 0.0
+                        r2 += dx * dx
                 if r2 < cut * cut:
                     if m == buf.shape[0]:
                         nb = np.empty(2 * m, np.int64)
@@ -132,11 +157,7 @@ def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodi
                         order = np.empty(2 * m, np.int64)
                     buf[m] = j
                     for a in range(d):
-                        if periodic[a]:
-                            dx = pos[j, a] - pos[i, a]
-                            bimg[m, a] = -np.int64(np.floor(dx / length[a] + 0.5))
-                        else:
-                            bimg[m, a] = 0
+                        bimg[m, a] = -np.int64(shift[a])
                     m += 1
         # insertion sort of this row's slots by j (rows are short)
         for u in range(m):
@@ -309,11 +330,19 @@ class NeighborList:
         pos, radius = bodies.pos, bodies.radius
         rmax = float(radius[spheres].max())
         cell = 2.0 * rmax + self.skin
-        lo = np.where(box.periodic, box.lo, pos[spheres].min(axis=0))
-        length = np.where(box.periodic, box.length, pos[spheres].max(axis=0) - lo + 1e-12)
+        triclinic = isinstance(box, PeriodicCell)
+        if triclinic:  # the grid counts perpendicular widths, in fractional coordinates
+            hmat = box.h
+            hinv = np.linalg.inv(hmat)
+            lo, length = box.origin, box.widths()
+        else:
+            hmat = hinv = np.eye(d)
+            lo = np.where(box.periodic, box.lo, pos[spheres].min(axis=0))
+            length = np.where(box.periodic, box.length,
+                              pos[spheres].max(axis=0) - lo + 1e-12)
         if np.any(box.periodic & (length < 2.0 * cell)):
             raise ValueError(
-                f"periodic box length {length[box.periodic].min():.4g} m is shorter than "
+                f"periodic cell width {length[box.periodic].min():.4g} m is less than "
                 f"twice the neighbour cut-off {cell:.4g} m")
         n_cells = np.maximum(1, np.floor(length / cell)).astype(np.int64)
         while np.prod(n_cells) > 8 * spheres.size + 64:  # sparse scenes: coarser grid
@@ -324,7 +353,7 @@ class NeighborList:
             pairs = np.empty((self._cap, 2), np.int32)
             img = np.empty((self._cap, d), np.int32)
             m = build_cell_pairs(pos, radius, spheres, self.skin, lo, length, n_cells,
-                                 box.periodic, pairs, img)
+                                 box.periodic, hmat, hinv, triclinic, pairs, img)
             if m <= self._cap:
                 return pairs[:m].copy(), img[:m].copy()
             log.debug("neighbour list overflow (%d > %d pairs): regrowing", m, self._cap)
@@ -333,6 +362,9 @@ class NeighborList:
     def _build_kdtree(self, bodies, spheres, box):
         from scipy.spatial import cKDTree
 
+        if isinstance(box, PeriodicCell):
+            raise ValueError("the kdtree neighbour backend needs an orthogonal Domain; "
+                             "a PeriodicCell uses backend='cell'")
         d = bodies.dim
         pos = bodies.pos[spheres]
         radius = bodies.radius[spheres]

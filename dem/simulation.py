@@ -6,6 +6,7 @@ import math
 import numba
 import numpy as np
 
+from .boundary import PeriodicCell
 from .contact.loops import (
     N_BLOCKS,
     NONFINITE,
@@ -26,6 +27,7 @@ from .contact.shape_loop import (
 )
 from .neighbors import NeighborList, carry_history, incidence
 from .shapes import Shape
+from .state import Bodies
 
 log = logging.getLogger(__name__)
 
@@ -163,6 +165,7 @@ class Simulation:
         self.n_inner_refreshes = 0  # diagnostics: inner contact list remade
         self._status = np.zeros(4, np.int64)
         periodic = box is not None and bool(np.any(box.periodic))
+        self.cell = box if isinstance(box, PeriodicCell) else None
         if detection not in ("auto", "admm"):
             raise ValueError(f"detection must be 'auto' or 'admm', got {detection!r}")
         if not (admm_tol > 0.0 and int(admm_max_iter) >= 1):
@@ -175,7 +178,10 @@ class Simulation:
             self._shape_setup(periodic)
         else:
             self._kernel = stepper(self.dim, model.kind("pp").code, model.kind("pw").code,
-                                   periodic=periodic)
+                                   periodic=periodic, deform=self.cell is not None)
+        d = self.dim
+        self._lgrad = self.cell.lgrad if self.cell is not None else np.zeros((d, d))
+        self._cellref = np.zeros((2, d, d))  # H^-1 at the Verlet build, at the inner list
         self._primed = False
         self._failure_hooks = []
 
@@ -199,9 +205,13 @@ class Simulation:
         b, nl = self.bodies, self.neighbors
         if self.dim == 3:  # the step's rotation update is unit only to O((w dt)^4)
             b.rot /= np.linalg.norm(b.rot, axis=1, keepdims=True)
+        if self.cell is not None:  # a sheared cell takes its least skewed basis
+            self.cell.reduce()
         old = (nl.pairs, getattr(self, "hist", None), getattr(nl, "wall_pairs", None),
                getattr(self, "whist", None))
         nl.build(b)
+        if self.cell is not None:
+            self._cellref[:] = np.linalg.inv(self.cell.h)
         m, mw, d, nr = nl.pairs.shape[0], nl.wall_pairs.shape[0], self.dim, b.n_rot
         self.hist = np.zeros((m, 3))
         self.whist = np.zeros((mw, 3))
@@ -252,7 +262,7 @@ class Simulation:
             self.damping, nl.skin, self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel,
             b.force, b.torque, b.radius, b.mass, self._inv_mass, self._inv_inertia,
             self._fixed, b.normal, b.mat_id, nl.pos_ref, self._grow(), self._hmat,
-            nl.pairs, nl.img, self.touch, self.hist, self.fpair, self._contrib,
+            self._lgrad, self._cellref, nl.pairs, nl.img, self.touch, self.hist, self.fpair, self._contrib,
             self._slot, self._inc_start, self._blk_start, self._params_pp, self._inner,
             self._n_inner,
             self._pos_inner, INNER_SKIN * nl.skin, nl.wall_pairs, self.whist,
@@ -392,6 +402,9 @@ class Simulation:
     def _shape_setup(self, periodic):
         """Buckets of the scene's kinds and the loop compiled for them."""
         b = self.bodies
+        if self.cell is not None:
+            raise ValueError("a deforming PeriodicCell runs spheres and disks only; "
+                             "level-set shapes need an orthogonal Domain")
         force_admm = self.detection == "admm"
         kinds = sorted({int(k) for k in np.unique(b.kind) if k != Shape.PLANE})
         self._bucket_keys = [(ka, kb) for ka in kinds for kb in kinds if ka <= kb]
@@ -469,6 +482,82 @@ class Simulation:
             self.wwarm, self.witers, self.wgeom, self.wforce, self.wtorque,
             self._winc_start, self._winc_list, self._params_pw, self._status,
             self.wall_work)
+
+    # ------------------------------------------------------------------ state copies
+    #: per-contact arrays of every scene, and of scenes with level-set shapes
+    _CONTACT_STATE = ("hist", "touch", "fpair", "whist", "wforce", "wtorque", "_radius_ref")
+    _SHAPE_STATE = ("warm", "iters", "pgeom", "tpair", "wwarm", "witers", "wgeom")
+
+    def snapshot(self, into=None):
+        """The whole dynamic state as a dict of arrays: bodies, cell, neighbour lists,
+        contact history and the inner list; :meth:`restore` brings it back bit for bit.
+
+        ``into``, a previous snapshot, has its arrays overwritten in place where the
+        shapes still fit (no allocation in the common case of an unchanged list).
+        """
+        self.prime()
+        b, nl = self.bodies, self.neighbors
+        snap = {} if into is None else into
+        src = {"b." + k: getattr(b, k) for k in Bodies.ARRAYS}
+        src.update({"nl." + k: getattr(nl, k) for k in ("pairs", "img", "wall_pairs",
+                                                         "pos_ref")})
+        names = self._CONTACT_STATE + (self._SHAPE_STATE if self.shaped else ())
+        src.update({k: getattr(self, k) for k in names})
+        src["clock"] = np.array([self.step, nl.n_builds, nl._cap], np.int64)
+        src["wall_work"] = self.wall_work
+        if not self.shaped:
+            src.update(n_inner=self._n_inner, inner=self._inner, pos_inner=self._pos_inner)
+        if self.cell is not None:
+            src.update(cell_h=self.cell.h, cell_lgrad=self.cell.lgrad,
+                       cellref=self._cellref,
+                       cell_n=np.array([self.cell.n_reductions], np.int64))
+        for k, v in src.items():
+            old = snap.get(k)
+            if old is not None and old.shape == v.shape and old.dtype == v.dtype:
+                np.copyto(old, v)
+            else:
+                snap[k] = v.copy()
+        return snap
+
+    def restore(self, snap):
+        """Set the state saved by :meth:`snapshot` (the same scene: same bodies and
+        model). Copies in place; running on repeats the original run bit for bit."""
+        b, nl = self.bodies, self.neighbors
+
+        def put(obj, name, v):
+            cur = getattr(obj, name, None)
+            if cur is not None and cur.shape == v.shape and cur.dtype == v.dtype:
+                np.copyto(cur, v)
+            else:
+                setattr(obj, name, v.copy())
+
+        if snap["b.pos"].shape != b.pos.shape:
+            raise ValueError("snapshot of another scene: body count or dimension differs")
+        for k in Bodies.ARRAYS:
+            put(b, k, snap["b." + k])
+        for k in ("pairs", "img", "wall_pairs", "pos_ref"):
+            put(nl, k, snap["nl." + k])
+        names = self._CONTACT_STATE + (self._SHAPE_STATE if self.shaped else ())
+        for k in names:
+            put(self, k, snap[k])
+        self.step, nl.n_builds, nl._cap = (int(x) for x in snap["clock"])
+        self.time = self.step * self.dt
+        np.copyto(self.wall_work, snap["wall_work"])
+        if self.cell is not None:
+            np.copyto(self.cell.h, snap["cell_h"])
+            np.copyto(self.cell.lgrad, snap["cell_lgrad"])
+            np.copyto(self._cellref, snap["cellref"])
+            self.cell.n_reductions = int(snap["cell_n"][0])
+        self._refresh_tables()
+        if self.shaped:
+            self._old_warm = (self.warm, self.wwarm)
+            self._shape_index()
+        else:
+            self._index()
+            n_inner, n_internal = (int(x) for x in snap["n_inner"])
+            self._restore_inner(n_inner, n_internal, snap["inner"][:max(n_inner, 0)],
+                                snap["pos_inner"])
+        self._primed = True
 
     # ------------------------------------------------------------------ contact data
     def contacts(self):

@@ -63,6 +63,27 @@ def sphere_pairs(pos, radius, skin, lo=None, hi=None, periodic=None):
     }
 
 
+def cell_pairs(pos, radius, h, cut_extra=0.0, reach=3):
+    """Every pair ``i < j`` of a periodic cell with matrix ``h`` (columns: edges)
+    closer than ``r_i + r_j + cut_extra`` over all images ``|n_a| <= reach``.
+
+    Returns ``{(i, j): distance}`` (a pair seen through two images is an error).
+    """
+    n, d = pos.shape
+    grids = np.stack(np.meshgrid(*[np.arange(-reach, reach + 1)] * d, indexing="ij"),
+                     -1).reshape(-1, d)
+    shifts = grids @ np.asarray(h).T
+    out = {}
+    for i in range(n):
+        for j in range(i + 1, n):
+            dist = np.linalg.norm(pos[j] - pos[i] + shifts, axis=1)
+            hit = np.flatnonzero(dist < radius[i] + radius[j] + cut_extra)
+            assert hit.size <= 1, "a pair touches through two images: cell too small"
+            if hit.size:
+                out[(i, j)] = float(dist[hit[0]])
+    return out
+
+
 def wall_pairs(pos, radius, wall_point, wall_normal, skin):
     """Every (sphere, wall) pair with a gap ``(x - p) . n - r`` below ``skin``."""
     out = set()

@@ -178,6 +178,28 @@ class Law:
         """Largest normal stiffness [N/m] a contact of reference radius ``r_ref`` reaches."""
         raise NotImplementedError
 
+    def spec(self):
+        """The law as plain data: ``{"law": class name, **constructor arguments}``;
+        :func:`law_from_spec` rebuilds it (files store laws this way, never as code)."""
+        return {"law": type(self).__name__, **self._args}
+
+    def with_friction(self, mu):
+        """A copy of the law with friction coefficient ``mu``."""
+        return law_from_spec({**self.spec(), "mu": float(mu)})
+
+
+def law_from_spec(spec):
+    """Rebuild a law from :meth:`Law.spec` data; unknown names or arguments raise."""
+    spec = dict(spec)
+    name = spec.pop("law", None)
+    kinds = {"LinearSpring": LinearSpring, "HertzMindlin": HertzMindlin}
+    if name not in kinds:
+        raise ValueError(f"unknown contact law {name!r}; known: {', '.join(kinds)}")
+    try:
+        return kinds[name](**spec)
+    except TypeError as err:
+        raise ValueError(f"contact law {name}: {err}") from None
+
 
 class LinearSpring(Law):
     """Linear spring(-dashpot) with tangential history and Coulomb friction.
@@ -218,6 +240,8 @@ class LinearSpring(Law):
             raise ValueError(f"restitution must be in (0, 1], got {restitution}")
         self.restitution = e
         self.zeta = -math.log(e) / math.sqrt(math.pi**2 + math.log(e) ** 2)
+        self._args = {"kn": self.kn, "kt": self.kt, "mu": self.mu, "gamma_n": self.gamma_n,
+                      "gamma_t": self.gamma_t, "restitution": e}
 
     def row(self):
         return np.array([self.kn, self.kt, self.gamma_n, self.gamma_t, self.zeta, self.mu])
@@ -275,6 +299,8 @@ class HertzMindlin(Law):
         self.g_star = 1.0 / (2 * (2 - n1) * (1 + n1) / e1 + 2 * (2 - n2) * (1 + n2) / e2)
         self.beta = math.log(e) / math.sqrt(math.log(e) ** 2 + math.pi**2)
         self.overlap_ref = _check("overlap_ref", overlap_ref, strict=True)
+        self._args = {"young": [float(e1), float(e2)], "poisson": [float(n1), float(n2)],
+                      "restitution": e, "mu": self.mu, "overlap_ref": self.overlap_ref}
 
     def row(self):
         return np.array([self.e_star, self.g_star, self.beta, self.mu])

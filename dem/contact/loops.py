@@ -54,13 +54,15 @@ def _apply_law(code, ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k,
 
 
 @kernel(inline=True)
-def _sphere_pair(k, dim, code, periodic, pos, vel, ang_vel, radius, inv_mass, mat_id,
-                 hmat, pairs, img, touch, hist, params, dt, overlap_limit, status_out):
+def _sphere_pair(k, dim, code, periodic, deform, pos, vel, ang_vel, radius, inv_mass,
+                 mat_id, hmat, lgrad, pairs, img, touch, hist, params, dt, overlap_limit,
+                 status_out):
     """Contact k of the sphere-sphere list.
 
     Returns ``(touching, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz)``: the force on j
     (i gets the opposite) and the torques on i and j (2D: the z components only).
-    Resets the history of a contact that opened; flags an excessive overlap.
+    In a deforming cell (``deform``) velocities are fluctuations and the relative
+    velocity gains ``L l``, ``l`` the branch vector. Resets the history of a contact that opened; flags an excessive overlap.
     """
     i = pairs[k, 0]
     j = pairs[k, 1]
@@ -110,6 +112,13 @@ def _sphere_pair(k, dim, code, periodic, pos, vel, ang_vel, radius, inv_mass, ma
         vx = vel[j, 0] - vel[i, 0] - (sy * nz - sz * ny)
         vy = vel[j, 1] - vel[i, 1] - (sz * nx - sx * nz)
         vz = vel[j, 2] - vel[i, 2] - (sx * ny - sy * nx)
+    if deform:  # the affine field's velocity difference across the branch vector
+        vx += lgrad[0, 0] * dx + lgrad[0, 1] * dy
+        vy += lgrad[1, 0] * dx + lgrad[1, 1] * dy
+        if dim == 3:
+            vx += lgrad[0, 2] * dz
+            vy += lgrad[1, 2] * dz
+            vz += lgrad[2, 0] * dx + lgrad[2, 1] * dy + lgrad[2, 2] * dz
     r_eff = ri * rj / (ri + rj)
     m_eff = 1.0 / (inv_mass[i] + inv_mass[j])
     fx, fy, fz = _apply_law(code, ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, params,
@@ -177,28 +186,65 @@ def _sphere_wall(k, dim, code, pos, vel, ang_vel, radius, inv_mass, mat_id, norm
 
 
 @kernel(inline=True)
-def _drift_body(b, dim, dt, half, pos, vel, rot, ang_vel, force, torque, inv_mass,
-                inv_inertia, is_fixed, pos_inner):
-    """Half kick and drift of body b (fixed bodies: drift at their velocity).
+def _affine(dim, deform, lgrad, pos, b, dt):
+    """The step's affine displacement ``dt L x`` of body b in a deforming cell."""
+    if not deform:
+        return 0.0, 0.0, 0.0
+    x, y = pos[b, 0], pos[b, 1]
+    if dim == 2:
+        return dt * (lgrad[0, 0] * x + lgrad[0, 1] * y), \
+            dt * (lgrad[1, 0] * x + lgrad[1, 1] * y), 0.0
+    z = pos[b, 2]
+    return (dt * (lgrad[0, 0] * x + lgrad[0, 1] * y + lgrad[0, 2] * z),
+            dt * (lgrad[1, 0] * x + lgrad[1, 1] * y + lgrad[1, 2] * z),
+            dt * (lgrad[2, 0] * x + lgrad[2, 1] * y + lgrad[2, 2] * z))
 
-    Zeroes b's force and torque: the contact loops add into them. Returns the squared displacement [m^2] since the inner list was made.
-    """
+
+@kernel(inline=True)
+def moved2(dim, deform, pos, ref, b, fmap):
+    """Squared displacement [m^2] of body b since ``ref``; in a deforming cell the
+    displacement beyond the affine map ``fmap`` (= H H_ref^-1) of the reference."""
     s2 = 0.0
+    for a in range(dim):
+        if deform:
+            dx = pos[b, a]
+            for c in range(dim):
+                dx -= fmap[a, c] * ref[b, c]
+        else:
+            dx = pos[b, a] - ref[b, a]
+        s2 += dx * dx
+    return s2
+
+
+@kernel(inline=True)
+def _drift_body(b, dim, deform, dt, half, pos, vel, rot, ang_vel, force, torque,
+                inv_mass, inv_inertia, is_fixed, pos_inner, lgrad, fmap):
+    """Half kick and drift of body b (fixed bodies: drift at their velocity), carried
+    by the cell's affine field when ``deform``.
+
+    Zeroes b's force and torque: the contact loops add into them. Returns the squared
+    displacement [m^2] since the inner list was made (beyond the affine map ``fmap``).
+    """
+    ax, ay, az = _affine(dim, deform, lgrad, pos, b, dt)
     if is_fixed[b]:
         for a in range(dim):
             pos[b, a] += dt * vel[b, a]
-            dx = pos[b, a] - pos_inner[b, a]
-            s2 += dx * dx
             force[b, a] = 0.0
         for a in range(torque.shape[1]):
             torque[b, a] = 0.0
+    else:
+        for a in range(dim):
+            vel[b, a] += half * force[b, a] * inv_mass[b]
+            pos[b, a] += dt * vel[b, a]
+            force[b, a] = 0.0
+    if deform:
+        pos[b, 0] += ax
+        pos[b, 1] += ay
+        if dim == 3:
+            pos[b, 2] += az
+    s2 = moved2(dim, deform, pos, pos_inner, b, fmap)
+    if is_fixed[b]:
         return s2
-    for a in range(dim):
-        vel[b, a] += half * force[b, a] * inv_mass[b]
-        pos[b, a] += dt * vel[b, a]
-        dx = pos[b, a] - pos_inner[b, a]
-        s2 += dx * dx
-        force[b, a] = 0.0
     if dim == 2:
         ang_vel[b, 0] += half * torque[b, 0] * inv_inertia[b, 0]
         rot[b, 0] += dt * ang_vel[b, 0]
@@ -352,8 +398,7 @@ def inner_index(pairs, inner, n_inner, blk_start_out, inc_start_out, slot_out):
     for q in range(n_int - 1, -1, -1):  # internal pairs come grouped by block
         blk_start_out[(pairs[inner[q], 0] * N_BLOCKS) // n] = q
     for b in range(N_BLOCKS - 1, -1, -1):  # empty blocks start where the next one does
-        if blk_start_out[b] > blk_start_out[b + 1]:
-            blk_start_out[b] = blk_start_out[b + 1]
+        blk_start_out[b] = min(blk_start_out[b], blk_start_out[b + 1])
     inc_start_out[:] = 0
     for u in range(n_int, n_tot):
         k = inner[u]
@@ -396,24 +441,66 @@ def _scatter_pair(k, dim, i, j, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz, fpair,
         torque[j, 2] += tjz
 
 
-def stepper(dim, law_pp, law_pw, periodic=False):
+@kernel(inline=True)
+def _deform_cell(hmat, lgrad, dt):
+    """One step of the cell matrix: H <- (I + dt L) H, the map the bodies follow."""
+    d = hmat.shape[0]
+    for c in range(d):
+        h0 = hmat[0, c]
+        h1 = hmat[1, c]
+        h2 = hmat[2, c] if d == 3 else 0.0
+        for a in range(d):
+            inc = lgrad[a, 0] * h0 + lgrad[a, 1] * h1
+            if d == 3:
+                inc += lgrad[a, 2] * h2
+            hmat[a, c] += dt * inc
+
+
+@kernel(inline=True)
+def _cell_map(hmat, href_inv, fmap_out):
+    """fmap = H H_ref^-1, the affine map from a reference state of the cell to now."""
+    d = hmat.shape[0]
+    for a in range(d):
+        for c in range(d):
+            v = 0.0
+            for e in range(d):
+                v += hmat[a, e] * href_inv[e, c]
+            fmap_out[a, c] = v
+
+
+@kernel(inline=True)
+def _strain_norm(fmap):
+    """Frobenius norm of fmap - I: bounds the relative length change of any vector."""
+    d = fmap.shape[0]
+    s = 0.0
+    for a in range(d):
+        for c in range(d):
+            v = fmap[a, c] - (1.0 if a == c else 0.0)
+            s += v * v
+    return math.sqrt(s)
+
+
+def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
     """The compiled multi-step kernel for ``dim`` (2 or 3) and two law codes.
 
     ``law_pp``/``law_pw`` are law codes (a law class's ``code``: 0 linear, 1
-    Hertz-Mindlin); ``periodic`` compiles in the periodic-image shifts. Only integers
+    Hertz-Mindlin); ``periodic`` compiles in the periodic-image shifts; ``deform``
+    the deforming cell (:mod:`dem.boundary`: ``hmat`` advanced by ``lgrad`` every
+    step, bodies carried by the affine field, ``cellref`` (2, d, d) holding H^-1 at
+    the Verlet build and at the inner list's making). Only integers
     are captured, so the kernel caches on disk; the branches not taken fold away at
     compile time.
     """
-    key = (int(dim), int(law_pp), int(law_pw), bool(periodic))
+    key = (int(dim), int(law_pp), int(law_pw), bool(periodic or deform), bool(deform))
     if key in _STEPPERS:
         return _STEPPERS[key]
-    DIM, PP, PW, PERIODIC = key
+    DIM, PP, PW, PERIODIC, DEFORM = key
 
     @kernel(parallel=True)
     def run_steps(n_steps, prime, resume, serial, dt, gravity, damping, skin, overlap_limit,
                   pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass,
-                  inv_inertia, is_fixed, normal, mat_id, pos_ref, grow, hmat,
-                  pairs, img, touch, hist, fpair, contrib, slot, inc_start, blk_start,
+                  inv_inertia, is_fixed, normal, mat_id, pos_ref, grow, hmat, lgrad,
+                  cellref, pairs, img, touch, hist, fpair, contrib, slot, inc_start, blk_start,
                   params_pp, inner, n_inner, pos_inner, skin_inner,
                   wpairs, whist, wforce, wtorque, wstart, params_pw,
                   status_out, work_out):
@@ -436,15 +523,27 @@ def stepper(dim, law_pp, law_pw, periodic=False):
         hdt = 0.0 if prime else dt
         kick = not prime
         n_iter = 1 if prime else n_steps
+        # a deforming cell: fmap = H H_inner^-1 maps the positions of the inner
+        # list's making affinely to now; a pair's distance can change by its
+        # strain times at most 2 r_max + skin on top of the bodies' own motion
+        fmap = np.eye(DIM)
+        rmax = 0.0
+        if DEFORM:
+            for b in range(n):
+                rmax = max(rmax, radius[b])
+            _cell_map(hmat, cellref[1], fmap)
         for it in range(n_iter):
             if not prime and not (resume and it == 0):
+                if DEFORM:  # the cell moves with the bodies' affine field: H += dt L H
+                    _deform_cell(hmat, lgrad, dt)
+                    _cell_map(hmat, cellref[1], fmap)
                 # ---- 1. half kick + drift
                 maxd2 = 0.0
                 n_bad = 0
                 for b in numba.prange(n):
-                    s2 = _drift_body(b, DIM, dt, half, pos, vel, rot, ang_vel,
+                    s2 = _drift_body(b, DIM, DEFORM, dt, half, pos, vel, rot, ang_vel,
                                      force, torque, inv_mass, inv_inertia, is_fixed,
-                                     pos_inner)
+                                     pos_inner, lgrad, fmap)
                     if not math.isfinite(s2):
                         n_bad += 1
                     maxd2 = max(maxd2, s2)
@@ -454,20 +553,24 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                     status_out[0] = NONFINITE
                     status_out[1] = -1
                     return done
-                if 2.0 * (math.sqrt(maxd2) + grow) > skin_inner:
+                strain = _strain_norm(fmap) if DEFORM else 0.0
+                if 2.0 * (math.sqrt(maxd2) + grow) + strain * (2.0 * rmax + skin_inner) \
+                        > skin_inner:
                     n_inner[0] = -1
             if n_inner[0] < 0:
                 # refresh the inner list from the Verlet list, which must still hold
+                if DEFORM:
+                    _cell_map(hmat, cellref[0], fmap)
                 maxd2 = 0.0
                 for b in numba.prange(n):
-                    s2 = 0.0
-                    for a in range(DIM):
-                        dx = pos[b, a] - pos_ref[b, a]
-                        s2 += dx * dx
-                    maxd2 = max(maxd2, s2)
-                if 2.0 * (math.sqrt(maxd2) + grow) > skin:
+                    maxd2 = max(maxd2, moved2(DIM, DEFORM, pos, pos_ref, b, fmap))
+                strain = _strain_norm(fmap) if DEFORM else 0.0
+                if 2.0 * (math.sqrt(maxd2) + grow) + strain * (2.0 * rmax + skin) > skin:
                     status_out[0] = REBUILD
                     return done
+                if DEFORM:
+                    cellref[1, :, :] = np.linalg.inv(hmat)
+                    fmap[:, :] = np.eye(DIM)
                 status_out[3] += 1  # inner refreshes, counted by the caller
                 # the inner list: which Verlet pairs are near (in parallel), then
                 # their list in order (one pass over flags)
@@ -489,8 +592,8 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                 for q in range(n_tot):
                     k = inner[q]
                     (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
-                        k, DIM, PP, PERIODIC, pos, vel, ang_vel, radius, inv_mass, mat_id,
-                        hmat, pairs, img, touch, hist, params_pp, hdt, overlap_limit,
+                        k, DIM, PP, PERIODIC, DEFORM, pos, vel, ang_vel, radius, inv_mass,
+                        mat_id, hmat, lgrad, pairs, img, touch, hist, params_pp, hdt, overlap_limit,
                         status_out)
                     if on:
                         _scatter_pair(k, DIM, pairs[k, 0], pairs[k, 1], fx, fy, fz, tix,
@@ -530,8 +633,8 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                     for q in range(blk_start[blk], blk_start[blk + 1]):
                         k = inner[q]
                         (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
-                            k, DIM, PP, PERIODIC, pos, vel, ang_vel, radius, inv_mass,
-                            mat_id, hmat, pairs, img, touch, hist, params_pp, hdt,
+                            k, DIM, PP, PERIODIC, DEFORM, pos, vel, ang_vel, radius,
+                            inv_mass, mat_id, hmat, lgrad, pairs, img, touch, hist, params_pp, hdt,
                             overlap_limit, status_out)
                         if on:
                             _scatter_pair(k, DIM, pairs[k, 0], pairs[k, 1], fx, fy, fz,
@@ -542,8 +645,8 @@ def stepper(dim, law_pp, law_pw, periodic=False):
                 for q in numba.prange(n_int, n_tot):
                     k = inner[q]
                     (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
-                        k, DIM, PP, PERIODIC, pos, vel, ang_vel, radius, inv_mass, mat_id,
-                        hmat, pairs, img, touch, hist, params_pp, hdt, overlap_limit,
+                        k, DIM, PP, PERIODIC, DEFORM, pos, vel, ang_vel, radius, inv_mass,
+                        mat_id, hmat, lgrad, pairs, img, touch, hist, params_pp, hdt, overlap_limit,
                         status_out)
                     si = slot[k, 0]
                     sj = slot[k, 1]

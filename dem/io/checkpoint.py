@@ -9,6 +9,7 @@ A checkpoint is an HDF5 file holding the full state of a :class:`~dem.Simulation
     /neighbors/  pairs (m, 2) int32, img (m, d) int32, wall_pairs (mw, 2) int32,
                  pos_ref (n, d) [m]
     /box/        lo, hi (d,) [m], periodic (d,) bool (only if the scene has a box)
+    /cell/       h, lgrad (d, d), origin (d,), cellref (2, d, d) (a PeriodicCell instead)
     /contacts/   per sphere pair: hist (m, 3), touch (m,) uint8, fpair (m, d);
                  per sphere-wall pair: whist (mw, 3), wforce (mw, d), wtorque;
                  radius_ref (n,), the radii at the last neighbour build;
@@ -31,6 +32,7 @@ import os
 import h5py
 import numpy as np
 
+from ..boundary import PeriodicCell
 from ..neighbors import Box
 from ..simulation import Simulation
 from ..state import Bodies
@@ -215,7 +217,7 @@ def _write_atomic(path, fill):
 
 
 # ------------------------------------------------------------------ checkpoint
-def save_checkpoint(sim, path):
+def save_checkpoint(sim, path, extra=None):
     """Write the full state of ``sim`` to ``path`` (HDF5, atomically).
 
     An unprimed simulation is primed first (neighbour lists and forces of the current
@@ -227,6 +229,9 @@ def save_checkpoint(sim, path):
     path : str or os.PathLike
         Written as ``path + ".tmp"`` and renamed into place: an interrupted save never
         leaves a partial file at ``path``.
+    extra : callable, optional
+        ``extra(h5file)`` adds groups of a caller (e.g. an RVE's settings) to the
+        same atomic write.
 
     Returns
     -------
@@ -259,7 +264,13 @@ def save_checkpoint(sim, path):
         g = f.create_group("neighbors")
         for name in ("pairs", "img", "wall_pairs", "pos_ref"):
             g.create_dataset(name, data=getattr(nl, name))
-        if sim.box is not None:
+        if sim.cell is not None:
+            g = f.create_group("cell")
+            for name in ("h", "lgrad", "origin"):
+                g.create_dataset(name, data=getattr(sim.cell, name))
+            g.create_dataset("cellref", data=sim._cellref)
+            g.attrs["n_reductions"] = int(sim.cell.n_reductions)
+        elif sim.box is not None:
             g = f.create_group("box")
             g.create_dataset("lo", data=np.asarray(sim.box.lo, dtype=np.float64))
             g.create_dataset("hi", data=np.asarray(sim.box.hi, dtype=np.float64))
@@ -282,6 +293,8 @@ def save_checkpoint(sim, path):
         g = f.create_group("model")
         g.create_dataset("params_pp", data=sim._params_pp)
         g.create_dataset("params_pw", data=sim._params_pw)
+        if extra is not None:
+            extra(f)
 
     _write_atomic(path, fill)
     log.info("checkpoint of step %d written to %s", sim.step, path)
@@ -338,6 +351,8 @@ def load_checkpoint(path, model, observers=(), controllers=(), state_objects=())
     for name, value in state["contacts"].items():
         setattr(sim, name, value)
     sim._radius_ref = state["radius_ref"]
+    if state["cellref"] is not None:
+        sim._cellref[:] = state["cellref"]
     sim._refresh_tables()
     if sim.shaped:
         sim._old_warm = (sim.warm, sim.wwarm)
@@ -424,7 +439,15 @@ def _read_checkpoint(path, f):
         if inner.size and (inner.min() < 0 or inner.max() >= m):
             raise ValueError(f"{path}: contacts/inner refers to pairs outside 0..{m - 1}")
     box = None
-    if attrs["has_box"]:
+    cellref = None
+    if attrs["has_box"] and "cell" in f:
+        g = f["cell"]
+        box = PeriodicCell(_checked(path, "cell/h", g["h"], (d, d), _F8),
+                           _checked(path, "cell/origin", g["origin"], (d,), _F8))
+        box.lgrad[:] = _checked(path, "cell/lgrad", g["lgrad"], (d, d), _F8)
+        box.n_reductions = int(g.attrs.get("n_reductions", 0))
+        cellref = _checked(path, "cell/cellref", g["cellref"], (2, d, d), _F8)
+    elif attrs["has_box"]:
         g = f["box"]
         box = Box(_checked(path, "box/lo", g["lo"], (d,), _F8),
                   _checked(path, "box/hi", g["hi"], (d,), _F8),
@@ -432,8 +455,25 @@ def _read_checkpoint(path, f):
     model = {k: v[()] for k, v in f["model"].items()} if "model" in f else {}
     return {"attrs": attrs, "bodies": bodies, "gravity": gravity,
             "wall_work": wall_work, "neighbors": neighbors, "contacts": contacts,
-            "radius_ref": radius_ref, "box": box, "model": model,
+            "radius_ref": radius_ref, "box": box, "cellref": cellref, "model": model,
             "inner": (n_inner, n_internal, inner, pos_inner)}
+
+
+def read_group(path, name, max_elements=10**6):
+    """Attributes and (small) datasets of group ``name`` of a checkpoint file:
+    ``{"attrs": {...}, "data": {...}}``. A dataset larger than ``max_elements`` is
+    refused before it is read."""
+    with _open(path, FORMAT) as f:
+        if name not in f or not isinstance(f[name], h5py.Group):
+            raise ValueError(f"{path}: no /{name} group")
+        g = f[name]
+        attrs = {k: (v.decode() if isinstance(v, bytes) else v) for k, v in g.attrs.items()}
+        data = {}
+        for k, v in g.items():
+            if not isinstance(v, h5py.Dataset) or v.size > max_elements:
+                raise ValueError(f"{path}: /{name}/{k} is not a small dataset")
+            data[k] = v[()]
+    return {"attrs": attrs, "data": data}
 
 
 # ------------------------------------------------------------------ failure output

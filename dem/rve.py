@@ -1,0 +1,547 @@
+"""Representative volume elements: periodic DEM cells under strain, stress or mixed control.
+
+An :class:`RVE` is a :class:`~dem.Simulation` of disks (2D) or spheres (3D) in a
+deformable :class:`~dem.boundary.PeriodicCell`. It is loaded the way a finite element
+Gauss point needs:
+
+* **strain control** -- :meth:`RVE.apply_strain` imposes an increment ``deps`` (d, d)
+  of the displacement gradient as a constant velocity gradient over ``n_s`` steps,
+  ``n_s`` chosen so that no step strains the cell by more than ``max_step_strain``
+  (1e-5 by default, as YADE's FEMxDEM), with ``L = ((I + deps)^(1/n_s) - I) / dt``
+  so that the steps' map ``(I + dt L)^n_s`` is exactly ``I + deps``; then it holds
+  the cell and relaxes;
+* **stress and mixed control** -- :meth:`RVE.load` drives the diagonal components
+  named in ``mask`` to target stresses with a servo on the cell while the others
+  follow a strain increment (a drained biaxial or triaxial test: axial strain,
+  constant lateral stress);
+* **relaxation** -- steps go on until the unbalanced-force ratio (mean net force
+  on a particle over mean contact force) is below ``tol`` and every servo has
+  reached its target; past ``max_relax_steps`` a :class:`RelaxationError` says how
+  far it got.
+
+The response is the Love-Weber stress over contacts with periodic branch vectors,
+plus the kinetic part of the fluctuations (:func:`dem.observers.stress_and_tangent`,
+paper eq 24), and a tangent: the contact-stiffness tangent (eq 29, the stiffness of
+the contact network deformed affinely) or a perturbation tangent (finite strain probes
+from the same state, each relaxed, the accurate alternative). Stress is positive in
+tension; in 2D stresses are per unit thickness over the cell's area, i.e. [Pa] for
+disks of unit thickness.
+
+State handling is a copy into preallocated arrays (:meth:`RVE.snapshot`,
+:meth:`RVE.restore`); :meth:`RVE.save` and :meth:`RVE.load_file` keep a packing in
+HDF5 so that one consolidation serves every Gauss point.
+
+Packings come from :func:`generate`: a random loose cloud of polydisperse
+particles, consolidated isotropically to ``p0`` by the servo with friction lowered
+(dense packings), then brought to the working friction at the same pressure.
+"""
+
+import logging
+import math
+import time
+
+import numpy as np
+from scipy.linalg import fractional_matrix_power
+
+from .boundary import PeriodicCell
+from .contact.laws import Law, law_from_spec
+from .observers import contact_summary
+from .simulation import Simulation, SimulationError
+from .state import Bodies
+
+log = logging.getLogger(__name__)
+
+
+class RelaxationError(SimulationError):
+    """The RVE did not reach quasi-static equilibrium within its step cap."""
+
+
+# --------------------------------------------------------------------------- packings
+def particle_radii(n, radius, fractions=None, seed=0):
+    """``n`` radii [m] drawn from a size distribution, largest first.
+
+    Parameters
+    ----------
+    radius : float, (r_min, r_max) or sequence of radii
+        One size; a range (uniform in radius, by number); or size classes.
+    fractions : sequence of float, optional
+        With size classes: the fraction of solid volume in each class (a grading
+        curve), normalised to 1.
+    seed : int
+
+    Examples
+    --------
+    >>> r = particle_radii(4, [1.0, 2.0], fractions=[0.5, 0.5])
+    >>> r.tolist()   # volume-weighted in 3D: more small ones
+    [2.0, 1.0, 1.0, 1.0]
+    """
+    n = int(n)
+    if n < 1:
+        raise ValueError(f"the number of particles must be >= 1, got {n}")
+    rng = np.random.default_rng(seed)
+    r = np.atleast_1d(np.asarray(radius, dtype=np.float64))
+    if not (np.all(np.isfinite(r)) and np.all(r > 0.0)):
+        raise ValueError(f"radii must be positive and finite, got {radius}")
+    if fractions is None:
+        if r.size == 1:
+            out = np.full(n, r[0])
+        elif r.size == 2:
+            if not r[1] >= r[0]:
+                raise ValueError(f"radius range must be (r_min, r_max), got {radius}")
+            out = rng.uniform(r[0], r[1], n)
+        else:
+            raise ValueError("several radii need their volume fractions")
+    else:
+        f = np.asarray(fractions, dtype=np.float64)
+        if f.shape != r.shape or np.any(f < 0.0) or not f.sum() > 0.0:
+            raise ValueError("fractions must be non-negative, one per radius, not all zero")
+        # numbers per class from volume fractions (3D weights; the same ranking in 2D)
+        w = f / r**3
+        counts = np.floor(n * w / w.sum()).astype(int)
+        rest = n - counts.sum()
+        order = np.argsort(-(n * w / w.sum() - counts))
+        counts[order[:rest]] += 1
+        out = np.repeat(r, counts)
+    return np.sort(out)[::-1].copy()
+
+
+def loose_cloud(dim, radii, solid_fraction, seed=0, aspect=None):
+    """A periodic cell and non-overlapping random positions for ``radii``.
+
+    Random sequential addition, largest first, in a cell sized for
+    ``solid_fraction`` (below the jamming limit of random addition: about 0.5 in 2D,
+    0.35 in 3D). ``aspect`` (d,) sets the cell's edge ratios (default a cube).
+    Returns ``(cell, pos)``.
+    """
+    radii = np.asarray(radii, dtype=np.float64)
+    if dim not in (2, 3):
+        raise ValueError(f"dim must be 2 or 3, got {dim}")
+    limit = 0.5 if dim == 2 else 0.35
+    if not 0.0 < solid_fraction <= limit:
+        raise ValueError(f"solid_fraction of a random loose cloud must be in (0, {limit}], "
+                         f"got {solid_fraction}")
+    vol = (math.pi * radii**2).sum() if dim == 2 else (4.0 / 3.0 * math.pi * radii**3).sum()
+    a = np.ones(dim) if aspect is None else np.asarray(aspect, dtype=np.float64)
+    side = (vol / solid_fraction / np.prod(a)) ** (1.0 / dim)
+    lengths = side * a
+    if np.any(lengths < 4.0 * radii.max()):
+        raise ValueError("too few particles for a periodic cell: its edge would be "
+                         "shorter than 2 particle diameters")
+    rng = np.random.default_rng(seed)
+    pos = np.empty((radii.size, dim))
+    for k, r in enumerate(radii):
+        for _ in range(10000):
+            x = rng.uniform(0.0, 1.0, dim) * lengths
+            d = pos[:k] - x
+            d -= lengths * np.rint(d / lengths)
+            if k == 0 or np.all(np.einsum("ij,ij->i", d, d) >= (radii[:k] + r) ** 2):
+                pos[k] = x
+                break
+        else:
+            raise ValueError(f"could not place particle {k} of {radii.size} at solid "
+                             f"fraction {solid_fraction}: lower it")
+    return PeriodicCell(lengths), pos
+
+
+# --------------------------------------------------------------------------- the RVE
+class RVE:
+    """A periodic representative volume element of disks or spheres.
+
+    Parameters
+    ----------
+    bodies : Bodies
+        Disks (2D) or spheres (3D) inside ``cell``; nothing else.
+    law : Law
+        Contact law (:class:`~dem.LinearSpring` or :class:`~dem.HertzMindlin`).
+    cell : PeriodicCell
+    damping : float
+        Cundall local damping in [0, 1) (quasi-static runs: 0.2 to 0.7).
+    dt : float, optional
+        Time step [s]; default ``DT_FACTOR`` x the critical step.
+    mass_scale : float
+        Density scaling factor (>= 1 speeds quasi-static runs up by sqrt of it; the
+        masses, the kinetic stress and the time step are those of the scaled
+        particles, and :attr:`mass_scale` reports it).
+    max_step_strain : float
+        Largest strain per time step under strain control.
+    tol : float
+        Unbalanced-force ratio at which a relaxation ends.
+    stress_tol : float
+        Relative tolerance of a stress-controlled component.
+    max_relax_steps : int
+        Step cap of one relaxation.
+    check_every : int
+        Steps between evaluations of stress and unbalanced force (servo updates).
+    threads : int, optional
+        Passed to :class:`~dem.Simulation` (default 1: an RVE is small, and a farm
+        runs many at once).
+    """
+
+    def __init__(self, bodies, law, cell, damping=0.5, dt=None, mass_scale=1.0,
+                 max_step_strain=1e-5, tol=1e-3, stress_tol=1e-3,
+                 max_relax_steps=200_000, check_every=50, threads=1):
+        if not isinstance(cell, PeriodicCell):
+            raise TypeError("cell must be a PeriodicCell")
+        if not isinstance(law, Law):
+            raise TypeError("law must be a contact Law (LinearSpring, HertzMindlin)")
+        if bodies.dim != cell.dim:
+            raise ValueError(f"bodies are {bodies.dim}D, the cell {cell.dim}D")
+        if bodies.has_shapes or np.any(bodies.kind != 0):
+            raise ValueError("an RVE holds disks or spheres only")
+        for name, v in (("max_step_strain", max_step_strain), ("tol", tol),
+                        ("stress_tol", stress_tol), ("mass_scale", mass_scale)):
+            if not (math.isfinite(v) and v > 0.0):
+                raise ValueError(f"{name} must be positive and finite, got {v}")
+        if mass_scale < 1.0:
+            raise ValueError(f"mass_scale must be >= 1, got {mass_scale}")
+        if int(max_relax_steps) < 1 or int(check_every) < 1:
+            raise ValueError("max_relax_steps and check_every must be >= 1")
+        if mass_scale != 1.0:
+            bodies.mass *= mass_scale
+            bodies.inertia *= mass_scale
+            bodies.density *= mass_scale
+        sim = Simulation(bodies, law, dt=dt, damping=damping, box=cell, threads=threads)
+        self._setup(sim, law, mass_scale, max_step_strain, tol, stress_tol,
+                    max_relax_steps, check_every, np.eye(cell.dim))
+
+    def _setup(self, sim, law, mass_scale, max_step_strain, tol, stress_tol,
+               max_relax_steps, check_every, deformation):
+        self.sim = sim
+        self.law = law
+        self.cell = sim.cell
+        self.dim = sim.dim
+        self.mass_scale = float(mass_scale)
+        self.max_step_strain = float(max_step_strain)
+        self.tol = float(tol)
+        self.stress_tol = float(stress_tol)
+        self.max_relax_steps = int(max_relax_steps)
+        self.check_every = int(check_every)
+        #: accumulated deformation gradient of the cell since its creation
+        self.deformation = deformation
+        #: steps of the last load or relaxation
+        self.last_relax_steps = 0
+
+    #: settings stored with a saved RVE
+    _SETTINGS = ("mass_scale", "max_step_strain", "tol", "stress_tol", "max_relax_steps",
+                 "check_every")
+
+    # ------------------------------------------------------------------ state
+    @property
+    def bodies(self):
+        return self.sim.bodies
+
+    @property
+    def volume(self):
+        return self.cell.volume
+
+    def snapshot(self, into=None):
+        """Copy of the full state (reusing ``into``'s arrays): see :meth:`restore`."""
+        snap = self.sim.snapshot(into)
+        old = snap.get("rve_deformation")
+        if old is None:
+            snap["rve_deformation"] = self.deformation.copy()
+        else:
+            np.copyto(old, self.deformation)
+        return snap
+
+    def restore(self, snap):
+        """Return to a :meth:`snapshot`; runs from it repeat bit for bit."""
+        self.sim.restore(snap)
+        np.copyto(self.deformation, snap["rve_deformation"])
+
+    def set_friction(self, mu):
+        """Change the friction coefficient of the contact law (existing contacts keep
+        their tangential springs; a spring above the new Coulomb limit slips at the
+        next step)."""
+        self.law = self.law.with_friction(mu)
+        self.sim.model = type(self.sim.model)(self.law)
+        self.sim._primed = False
+
+    # ------------------------------------------------------------------ response
+    def response(self, tangent=True):
+        """Stress (d, d) [Pa], contact tangent (d, d, d, d) [Pa] or None, and the
+        measures of the packing, from the current state (a dict)."""
+        sim = self.sim
+        sim.prime()
+        b = sim.bodies
+        c = contact_summary(sim)
+        v = self.volume
+        f, br = c["force"], c["branch"]
+        sig = -np.einsum("ca,cb->ab", f, br)
+        sig -= np.einsum("p,pa,pb->ab", b.mass, b.vel, b.vel)
+        sig = 0.5 * (sig + sig.T) / v
+        out = {"stress": sig, "n_contacts": int(f.shape[0])}
+        # unbalanced force: mean net contact force on a particle over mean contact force
+        net = np.zeros((b.n, self.dim))
+        np.add.at(net, c["i"], -f)
+        np.add.at(net, c["j"], f)
+        fmean = float(np.linalg.norm(f, axis=1).mean()) if f.shape[0] else 0.0
+        out["unbalanced"] = (float(np.linalg.norm(net, axis=1).mean()) / fmean
+                             if fmean > 0.0 else math.inf)
+        n = c["normal"]
+        out["fabric"] = (np.einsum("ci,cj->ij", n, n) / n.shape[0] if n.shape[0]
+                         else np.zeros((self.dim, self.dim)))
+        deg = np.bincount(np.concatenate([c["i"], c["j"]]), minlength=b.n)
+        out["coordination"] = 2.0 * f.shape[0] / b.n
+        out["rattlers"] = int(np.count_nonzero(deg < 2))
+        vs = solid_volume(b)
+        out["void_ratio"] = (v - vs) / vs
+        if tangent:
+            kn, kt = c["kn"], c["kt"]
+            eye = np.eye(self.dim)
+            cn = np.einsum("c,ci,cj,ck,cl->ijkl", kn, n, br, n, br)
+            proj = eye[None] - np.einsum("ci,ck->cik", n, n)
+            ct = np.einsum("c,cik,cj,cl->ijkl", kt, proj, br, br)
+            out["tangent"] = (cn + ct) / v
+        return out
+
+    def stress(self):
+        """Homogenised Cauchy stress (d, d) [Pa], tension positive."""
+        return self.response(tangent=False)["stress"]
+
+    def tangent(self, method="contact", probe=1e-5):
+        """Tangent operator ``C_ijkl = d sigma_ij / d eps_kl`` (d, d, d, d) [Pa].
+
+        ``method="contact"``: eq 29 from the contact stiffnesses (affine, an upper
+        bound of the relaxed stiffness). ``"perturbation"``: for each symmetric
+        strain direction, a probe of ``probe`` is applied from the current state and
+        relaxed, and the stress difference divided by it; the state is restored
+        after each probe (the result is symmetric in kl by construction).
+        """
+        if method == "contact":
+            return self.response(tangent=True)["tangent"]
+        if method != "perturbation":
+            raise ValueError(f"tangent method must be 'contact' or 'perturbation', "
+                             f"got {method!r}")
+        d = self.dim
+        base = self.snapshot()
+        s0 = self.stress()
+        c = np.zeros((d, d, d, d))
+        for k in range(d):
+            for m in range(k, d):
+                de = np.zeros((d, d))
+                # a shear probe is an engineering strain: eps_km = eps_mk = probe / 2
+                de[k, m] = de[m, k] = probe if k == m else 0.5 * probe
+                self.apply_strain(de)
+                ds = (self.stress() - s0) / probe
+                if k == m:
+                    c[:, :, k, k] = ds
+                else:  # d sigma / d eps_km = d sigma / d eps_mk = ds (each half)
+                    c[:, :, k, m] = c[:, :, m, k] = ds
+                self.restore(base)
+        return c
+
+    # ------------------------------------------------------------------ loading
+    def apply_strain(self, deps):
+        """Impose the displacement-gradient increment ``deps`` (d, d), then relax.
+
+        Returns the stress (d, d) [Pa] of the relaxed state.
+        """
+        return self.load(deps)
+
+    def load(self, deps=None, stress=None, mask=None, progress=None):
+        """Mixed control: strain increment on some components, stress on others.
+
+        Parameters
+        ----------
+        deps : (d, d) array_like, optional
+            Displacement-gradient increment of the strain-controlled components
+            (entries on stress-controlled diagonal components are ignored).
+        stress : (d,) array_like, optional
+            Target diagonal stresses [Pa] (tension positive) of the components in
+            ``mask``.
+        mask : (d,) bool array_like, optional
+            Diagonal components under stress control.
+        progress : callable, optional
+            ``progress(steps_done)`` after each check (for progress bars).
+
+        Returns the relaxed stress (d, d) [Pa].
+        """
+        d = self.dim
+        deps = np.zeros((d, d)) if deps is None else np.array(deps, dtype=np.float64)
+        if deps.shape != (d, d) or not np.all(np.isfinite(deps)):
+            raise ValueError(f"strain increment must be a finite ({d}, {d}) array")
+        mask = np.zeros(d, bool) if mask is None else np.asarray(mask, dtype=bool)
+        target = np.zeros(d) if stress is None else np.asarray(stress, dtype=np.float64)
+        if mask.shape != (d,) or target.shape != (d,) or not np.all(np.isfinite(target)):
+            raise ValueError(f"stress targets and mask must be finite ({d},) arrays")
+        deps[mask, mask] = 0.0
+        return self._drive(deps, target, mask, progress)
+
+    def consolidate(self, p0, friction=None, max_step_strain=1e-4, progress=None):
+        """Isotropic consolidation to the mean pressure ``p0`` [Pa] by the servo.
+
+        With ``friction`` the consolidation runs at that friction coefficient (lower
+        than the law's for a denser packing), then the law's friction is restored and
+        the packing relaxed again at ``p0``.
+        """
+        if not (math.isfinite(p0) and p0 > 0.0):
+            raise ValueError(f"p0 must be positive and finite, got {p0}")
+        working = self.law.mu
+        saved = self.max_step_strain
+        self.max_step_strain = float(max_step_strain)
+        target = np.full(self.dim, -float(p0))
+        mask = np.ones(self.dim, bool)
+        try:
+            if friction is not None:
+                self.set_friction(friction)
+                self._drive(np.zeros((self.dim, self.dim)), target, mask, progress)
+                self.set_friction(working)
+            return self._drive(np.zeros((self.dim, self.dim)), target, mask, progress)
+        finally:
+            self.max_step_strain = saved
+
+    def _drive(self, deps, target, mask, progress):
+        sim, cell, d = self.sim, self.cell, self.dim
+        dt = sim.dt
+        n_load = math.ceil(np.abs(deps).max() / self.max_step_strain) if deps.any() else 0
+        l_load = np.zeros((d, d))
+        if n_load:  # (I + dt L)^n_load = I + deps exactly: L from the matrix root
+            root = fractional_matrix_power(np.eye(d) + deps, 1.0 / n_load)
+            l_load = (np.real(root) - np.eye(d)) / dt
+        rate_max = self.max_step_strain / dt
+        tau = 4.0 * self.check_every * dt  # servo time constant
+        start = sim.step
+        done_load = 0
+        lgrad = np.zeros((d, d))
+        r = self.response(tangent=bool(mask.any()))
+        while True:
+            servo_ok = True
+            lgrad[:] = 0.0
+            if mask.any():
+                c = r["tangent"]
+                for a in np.flatnonzero(mask):
+                    err = target[a] - r["stress"][a, a]
+                    scale = max(abs(target[a]), 1e-300)
+                    if abs(err) > self.stress_tol * scale:
+                        servo_ok = False
+                    m_aa = c[a, a, a, a]
+                    rate = err / (m_aa * tau) if m_aa > 0.0 else math.copysign(rate_max, err)
+                    lgrad[a, a] = max(-rate_max, min(rate_max, rate))
+            n_chunk = self.check_every
+            if done_load < n_load:
+                n_chunk = min(n_chunk, n_load - done_load)
+                lgrad += l_load
+            elif servo_ok and r["unbalanced"] < self.tol:
+                break
+            if sim.step - start - n_load >= self.max_relax_steps:
+                cell.lgrad[:] = 0.0
+                raise RelaxationError(
+                    f"RVE did not relax within {self.max_relax_steps} steps: unbalanced "
+                    f"force ratio {r['unbalanced']:.3g} (tolerance {self.tol:g}), stress "
+                    f"{np.diag(r['stress']).tolist()} Pa (targets {target[mask].tolist()} "
+                    f"on components {np.flatnonzero(mask).tolist()}); lower the strain "
+                    f"increment, raise damping or max_relax_steps")
+            cell.lgrad[:] = lgrad
+            sim.run(n_chunk, progress=False)
+            self.deformation = _expm_step(lgrad, dt, n_chunk) @ self.deformation
+            cell.lgrad[:] = 0.0
+            if done_load < n_load:
+                done_load += n_chunk
+            r = self.response(tangent=bool(mask.any()))
+            if progress is not None:
+                progress(sim.step - start)
+        self.last_relax_steps = sim.step - start
+        self._last = r
+        return r["stress"]
+
+    # ------------------------------------------------------------------ files
+    def save(self, path, **attrs):
+        """Write the RVE (state, law, settings) to an HDF5 file, atomically."""
+        import json
+
+        from .io.checkpoint import save_checkpoint
+
+        def extra(f):
+            g = f.create_group("rve")
+            g.attrs["law"] = json.dumps(self.law.spec())
+            for k in self._SETTINGS:
+                g.attrs[k] = getattr(self, k)
+            g.create_dataset("deformation", data=self.deformation)
+            for k, v in attrs.items():
+                g.attrs[k] = v
+
+        return save_checkpoint(self.sim, path, extra=extra)
+
+    @classmethod
+    def load_file(cls, path, **overrides):
+        """Read an RVE written by :meth:`save`; its law and settings come with it
+        (``overrides`` replace settings, e.g. ``tol``)."""
+        import json
+
+        from .io.checkpoint import load_checkpoint, read_group
+
+        g = read_group(path, "rve")
+        try:
+            law = law_from_spec(json.loads(g["attrs"]["law"]))
+            opts = {k: g["attrs"][k] for k in cls._SETTINGS}
+            deformation = g["data"]["deformation"]
+        except (KeyError, ValueError, TypeError) as err:
+            raise ValueError(f"{path}: malformed RVE file ({err})") from None
+        sim = load_checkpoint(path, law)
+        if sim.cell is None or np.asarray(deformation).shape != (sim.dim, sim.dim):
+            raise ValueError(f"{path}: not a periodic-cell RVE")
+        unknown = set(overrides) - set(cls._SETTINGS)
+        if unknown:
+            raise TypeError(f"unknown RVE settings: {', '.join(sorted(unknown))}")
+        opts.update(overrides)
+        rve = cls.__new__(cls)
+        rve._setup(sim, law, deformation=np.array(deformation, np.float64), **opts)
+        return rve
+
+
+def _expm_step(lgrad, dt, n):
+    """The cell map of ``n`` steps at a constant velocity gradient: (I + dt L)^n."""
+    return np.linalg.matrix_power(np.eye(lgrad.shape[0]) + dt * lgrad, int(n))
+
+
+def solid_volume(bodies):
+    """Volume [m^3] (area [m^2] in 2D) of the particles."""
+    r = bodies.radius[bodies.kind == 0]
+    if bodies.dim == 2:
+        return float(np.pi * (r**2).sum())
+    return float(4.0 / 3.0 * np.pi * (r**3).sum())
+
+
+def generate(dim, n, radius, law, p0, density=2650.0, fractions=None, seed=0,
+             friction=None, solid_fraction=None, progress=None, **rve_options):
+    """A consolidated periodic packing, ready to load.
+
+    Parameters
+    ----------
+    dim : 2 or 3
+    n : int
+        Number of particles.
+    radius : float, (r_min, r_max) or radii
+        Size distribution (see :func:`particle_radii`).
+    law : Law
+        The working contact law.
+    p0 : float
+        Consolidation pressure [Pa].
+    density : float
+        Particle density [kg/m^3] (per unit thickness in 2D).
+    fractions : sequence, optional
+        Solid-volume fractions of the size classes.
+    seed : int
+        The packing is a function of the seed (and the arguments): reproducible.
+    friction : float, optional
+        Friction during consolidation (default: the law's; 0 gives the densest).
+    solid_fraction : float, optional
+        Of the initial loose cloud (default 0.4 in 2D, 0.25 in 3D).
+    **rve_options
+        Passed to :class:`RVE`.
+
+    Returns
+    -------
+    RVE
+    """
+    radii = particle_radii(n, radius, fractions, seed)
+    phi = solid_fraction or (0.4 if dim == 2 else 0.25)
+    cell, pos = loose_cloud(dim, radii, phi, seed)
+    bodies = Bodies.spheres(pos, radius=radii, density=density)
+    rve = RVE(bodies, law, cell, **rve_options)
+    t0 = time.perf_counter()
+    rve.consolidate(p0, friction=friction, progress=progress)
+    log.info("packing of %d particles consolidated to %.4g Pa in %d steps (%.1f s)",
+             n, p0, rve.sim.step, time.perf_counter() - t0)
+    return rve

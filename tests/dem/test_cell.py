@@ -1,0 +1,157 @@
+"""The deformable periodic cell: affine motion, images through the cell matrix,
+unlimited shear, the affine velocity inside contacts, threads and restart."""
+
+import naive
+import numba
+import numpy as np
+import pytest
+
+import dem
+from dem.boundary import PeriodicCell
+from dem.io import load_checkpoint, save_checkpoint
+
+
+def _grid(dim, side, spacing):
+    g = (np.arange(side) + 0.5) * spacing
+    return np.stack(np.meshgrid(*[g] * dim, indexing="ij"), -1).reshape(-1, dim)
+
+
+def _lattice_residual(h, x):
+    """Largest distance, in fractional terms, of x (n, d) from the lattice of h."""
+    k = np.linalg.solve(h, x.T).T
+    return float(np.abs(k - np.rint(k)).max())
+
+
+def test_cell_rejects_degenerate_or_misshapen_matrices():
+    with pytest.raises(ValueError, match="positive determinant"):
+        PeriodicCell([[1.0, 0.0], [0.0, -1.0]])
+    with pytest.raises(ValueError, match=r"\(2, 2\) or \(3, 3\)"):
+        PeriodicCell(np.eye(4))
+    with pytest.raises(ValueError, match="finite"):
+        PeriodicCell([1.0, np.nan])
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_free_bodies_keep_their_place_in_the_deforming_lattice(dim):
+    """Bodies that do not touch follow x -> F x exactly; the cell is F H0 (up to a
+    change of lattice basis), whatever stretch, shear and spin L has."""
+    side = 4
+    cell = PeriodicCell(np.full(dim, side * 1.0))
+    pos0 = _grid(dim, side, 1.0)
+    bodies = dem.Bodies.spheres(pos0.copy(), radius=0.2, density=1000.0)
+    sim = dem.Simulation(bodies, dem.LinearSpring(kn=1e4), box=cell, dt=1e-3)
+    rng = np.random.default_rng(7)
+    lgrad = rng.uniform(-0.4, 0.4, (dim, dim))
+    lgrad[0, 1] = 1.5  # enough shear for at least one change of basis
+    cell.lgrad[:] = lgrad
+    n = 2000
+    sim.run(n)
+    fmap = np.linalg.matrix_power(np.eye(dim) + 1e-3 * lgrad, n)
+    assert cell.n_reductions >= 1
+    assert _lattice_residual(cell.h, bodies.pos - pos0 @ fmap.T) < 1e-11
+    assert _lattice_residual(cell.h, (fmap * side).T) < 1e-11  # edges of F H0 (rows)
+    assert cell.volume == pytest.approx(np.linalg.det(fmap) * side**dim, rel=1e-12)
+    assert np.all(bodies.vel == 0.0)  # the affine field is not in the fluctuations
+
+
+def test_simple_shear_without_limit_keeps_every_contact():
+    """Held bodies (affine motion only) sheared to gamma = 4: at every check the
+    touching pairs and their distances are the brute-force ones over all images."""
+    rng = np.random.default_rng(3)
+    cell = PeriodicCell([1.0, 1.0])
+    pos = rng.uniform(0.0, 1.0, (60, 2))
+    radius = rng.uniform(0.05, 0.08, 60)
+    bodies = dem.Bodies.spheres(pos, radius=radius, density=1000.0)
+    bodies.is_fixed[:] = True
+    sim = dem.Simulation(bodies, dem.LinearSpring(kn=1e3), box=cell, dt=1e-3,
+                         overlap_limit=10.0)  # random centres: deep overlaps allowed
+    cell.lgrad[0, 1] = 1.0  # gamma-dot = 1 / s
+    for _ in range(4):
+        sim.run(1000)
+        c = sim.contacts()
+        got = {(int(i), int(j)): float(np.linalg.norm(br))
+               for i, j, br in zip(c["i"], c["j"], c["branch"], strict=True)}
+        want = naive.cell_pairs(bodies.pos, radius, cell.h, reach=4)
+        assert got.keys() == want.keys()
+        assert max(abs(got[k] - want[k]) for k in got) < 1e-12
+    assert cell.n_reductions >= 2
+    assert cell.h[0, 1] == pytest.approx(4.0 - 4.0 * round(1.0), abs=0.51)
+
+
+@pytest.mark.parametrize("across", [False, True])
+def test_shear_loads_the_tangential_spring_through_the_affine_velocity(across):
+    """Two heavy disks, one above the other, sheared: the relative velocity at the
+    contact is L l, so the tangential force grows as kt gamma-dot |l| t -- the same
+    whether the pair sits inside the cell or touches through its boundary."""
+    cell = PeriodicCell([1.0, 1.0])
+    r, ov = 0.1, 1e-3
+    y0 = 0.95 if across else 0.4  # across: j is i's image above the top edge
+    yj = (y0 + 2 * r - ov) % 1.0
+    # so heavy that the contact force barely moves them in the run
+    bodies = dem.Bodies.spheres(np.array([[0.5, y0], [0.5, yj]]), radius=r, density=1e9)
+    kt, rate, dt, n = 2e3, 1e-2, 1e-4, 500
+    sim = dem.Simulation(bodies, dem.LinearSpring(kn=1e4, kt=kt, mu=10.0), box=cell, dt=dt)
+    cell.lgrad[0, 1] = rate
+    sim.run(n)
+    c = sim.contacts()
+    assert c["i"].size == 1
+    f, n_ = c["force"][0], c["normal"][0]
+    f_t = np.linalg.norm(f - (f @ n_) * n_)  # the normal has turned a little too
+    branch = 2 * r - ov
+    assert f_t == pytest.approx(kt * rate * branch * n * dt, rel=2e-3)
+
+
+def test_thread_count_does_not_change_a_deforming_run():
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs NUMBA_NUM_THREADS >= 2 to compare 1 and 2 threads")
+    from dem import rve
+
+    out = []
+    for threads in (1, 2):
+        radii = rve.particle_radii(300, (0.8, 1.2), seed=1)
+        cell, pos = rve.loose_cloud(2, radii, 0.5, seed=1)
+        bodies = dem.Bodies.spheres(pos, radius=radii, density=1.0)
+        sim = dem.Simulation(bodies, dem.LinearSpring(kn=1e3, kt=5e2, mu=0.5), box=cell,
+                             damping=0.3, threads=threads)
+        cell.lgrad[:] = [[-2e-3, 1e-3], [0.0, -1e-3]]
+        sim.run(3000)
+        out.append((bodies.pos.copy(), cell.h.copy(), sim.fpair.copy()))
+    for a, b in zip(out[0], out[1], strict=True):
+        assert np.array_equal(a, b)
+
+
+def test_checkpoint_of_a_deforming_cell_restarts_bit_for_bit(tmp_path):
+    from dem import rve
+
+    radii = rve.particle_radii(80, (0.8, 1.2), seed=2)
+    cell, pos = rve.loose_cloud(2, radii, 0.5, seed=2)
+    law = dem.LinearSpring(kn=1e3, kt=5e2, mu=0.5)
+    sim = dem.Simulation(dem.Bodies.spheres(pos, radius=radii, density=1.0), law,
+                         box=cell, damping=0.3)
+    cell.lgrad[:] = [[-3e-3, 2e-3], [0.0, -1e-3]]
+    sim.run(1500)
+    save_checkpoint(sim, tmp_path / "c.h5")
+    sim.run(1500)
+    again = load_checkpoint(tmp_path / "c.h5", law)
+    assert again.cell is not None and np.array_equal(again.cell.lgrad, cell.lgrad)
+    again.run(1500)
+    assert np.array_equal(again.bodies.pos, sim.bodies.pos)
+    assert np.array_equal(again.cell.h, cell.h)
+    assert np.array_equal(again.hist, sim.hist)
+
+
+def test_cell_refuses_what_it_cannot_run():
+    cell = PeriodicCell([1.0, 1.0])
+    bodies = dem.Bodies.spheres(np.array([[0.5, 0.5]]), radius=0.1, density=1.0)
+    sim = dem.Simulation(bodies, dem.LinearSpring(kn=1.0), box=cell, dt=1e-3,
+                         neighbor_backend="kdtree")
+    with pytest.raises(ValueError, match="orthogonal"):
+        sim.run(1)
+    b = dem.Bodies.spheres(np.zeros((0, 2)), radius=0.1, density=1.0)
+    b.add_shapes(dem.Box([0.1, 0.1]), np.array([[0.5, 0.5]]), density=1.0)
+    with pytest.raises(ValueError, match="spheres and disks only"):
+        dem.Simulation(b, dem.LinearSpring(kn=1.0), box=cell, dt=1e-3)
+    small = dem.Bodies.spheres(np.array([[0.5, 0.5]]), radius=0.3, density=1.0)
+    sim = dem.Simulation(small, dem.LinearSpring(kn=1.0), box=cell, dt=1e-3)
+    with pytest.raises(ValueError, match="less than twice the neighbour cut-off"):
+        sim.run(1)

@@ -1,0 +1,157 @@
+"""The periodic RVE: analytic lattice response, packings, control, state and files."""
+
+import numpy as np
+import pytest
+
+import dem
+from dem import rve
+from dem.boundary import PeriodicCell
+
+LAW = dem.LinearSpring(kn=1e8, kt=5e7, mu=0.5)
+
+
+def _lattice(dim, side, r, overlap=0.0, gap=0.0):
+    """Square/cubic lattice of disks/spheres filling a periodic cell: spacing
+    ``2 r - overlap`` along x, ``2 r - overlap + gap`` along the other axes."""
+    a = np.full(dim, 2.0 * r - overlap)
+    a[1:] += gap
+    axes = [(np.arange(side) + 0.5) * a[k] for k in range(dim)]
+    pos = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, dim)
+    cell = PeriodicCell(side * a)
+    return dem.Bodies.spheres(pos, radius=r, density=2650.0), cell, a
+
+
+@pytest.fixture(scope="module")
+def packing():
+    """A small consolidated 2D packing (frictionless consolidation, mu = 0.5 after)."""
+    return rve.generate(2, 60, (0.8e-3, 1.2e-3), LAW, p0=1e5, friction=0.0, seed=5,
+                        damping=0.5)
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_lattice_under_axial_strain_matches_the_analytic_stress(dim):
+    """Chains of touching particles along x, open along the other axes, no friction:
+    compressing x by eps overlaps each contact by |eps| a_x, so
+    sigma_xx = kn eps a_x / (a_y a_z) exactly, every other component zero; the
+    contact tangent is kn a_x (1 + eps) / (a_y a_z) on xxxx and zero elsewhere."""
+    law = dem.LinearSpring(kn=1e8)
+    bodies, cell, a = _lattice(dim, 3, 1e-3, gap=1e-6)
+    r = rve.RVE(bodies, law, cell, damping=0.5)
+    deps = np.zeros((dim, dim))
+    deps[0, 0] = -2e-4
+    s = r.apply_strain(deps)
+    eps = r.deformation[0, 0] - 1.0
+    assert eps == pytest.approx(-2e-4, rel=1e-9)  # the steps make exactly I + deps
+    scale = law.kn * a[0] / np.prod(a[1:])
+    assert s[0, 0] == pytest.approx(scale * eps, rel=1e-9)
+    off = s.copy()
+    off[0, 0] = 0.0
+    assert np.abs(off).max() < 1e-9 * abs(s[0, 0])
+    c = r.tangent()
+    assert c[0, 0, 0, 0] == pytest.approx(scale * (1 + eps), rel=1e-9)
+    c[0, 0, 0, 0] = 0.0
+    assert np.abs(c).max() < 1e-9 * scale
+
+
+def test_lattice_perturbation_tangent_is_the_analytic_stiffness():
+    """Precompressed square lattice, frictionless, contacts overlapping by d0 at
+    spacing a: probes give C_xxxx = C_yyyy = kn and the geometric terms of the
+    Cauchy stress, C_yyxx = -sigma_yy = kn d0 / a (the cell widens, the forces stay)
+    and C_xyxy = sigma_yy (the chains tilt)."""
+    law = dem.LinearSpring(kn=1e8)
+    d0 = 1e-6
+    bodies, cell, a = _lattice(2, 3, 1e-3, overlap=d0)
+    r = rve.RVE(bodies, law, cell, damping=0.5)
+    s0 = r.stress()
+    assert s0[1, 1] == pytest.approx(-law.kn * d0 / a[0], rel=1e-9)
+    c = r.tangent("perturbation", probe=1e-7)
+    assert c[0, 0, 0, 0] == pytest.approx(law.kn, rel=2e-3)
+    assert c[1, 1, 1, 1] == pytest.approx(law.kn, rel=2e-3)
+    assert c[1, 1, 0, 0] == pytest.approx(-s0[1, 1], rel=2e-3)
+    assert c[0, 1, 0, 1] == pytest.approx(s0[1, 1], rel=2e-3)
+    assert c[0, 1, 1, 0] == c[0, 1, 0, 1]  # minor symmetry
+
+
+def test_consolidation_reaches_the_target_pressure(packing):
+    out = packing.response()
+    s = out["stress"]
+    assert np.diag(s) == pytest.approx([-1e5, -1e5], rel=2e-3)
+    assert out["unbalanced"] < packing.tol
+    assert 3.0 < out["coordination"] < 4.5  # frictionless consolidation: dense
+    assert 0.1 < out["void_ratio"] < 0.3
+    assert packing.law.mu == 0.5  # the working friction is back
+
+
+def test_packing_is_a_function_of_the_seed():
+    a = rve.particle_radii(30, (1.0, 2.0), seed=4)
+    assert np.array_equal(a, rve.particle_radii(30, (1.0, 2.0), seed=4))
+    c1, p1 = rve.loose_cloud(2, a, 0.4, seed=4)
+    c2, p2 = rve.loose_cloud(2, a, 0.4, seed=4)
+    assert np.array_equal(p1, p2) and np.array_equal(c1.h, c2.h)
+    _, p3 = rve.loose_cloud(2, a, 0.4, seed=5)
+    assert not np.array_equal(p1, p3)
+
+
+def test_size_classes_follow_the_volume_fractions():
+    r = rve.particle_radii(2000, [1.0, 2.0], fractions=[0.5, 0.5])
+    vol = {x: (r[r == x] ** 3).sum() for x in (1.0, 2.0)}
+    assert vol[1.0] / vol[2.0] == pytest.approx(1.0, rel=0.02)
+
+
+def test_snapshot_restore_repeats_a_load_bit_for_bit(packing):
+    snap = packing.snapshot()
+    deps = np.array([[-5e-4, 2e-4], [2e-4, 1e-4]])
+    s1 = packing.apply_strain(deps)
+    pos1 = packing.bodies.pos.copy()
+    packing.restore(snap)
+    s2 = packing.apply_strain(deps)
+    assert np.array_equal(s1, s2) and np.array_equal(pos1, packing.bodies.pos)
+    packing.restore(snap)
+    assert np.array_equal(packing.deformation, snap["rve_deformation"])
+
+
+def test_saved_rve_loads_and_continues_bit_for_bit(packing, tmp_path):
+    snap = packing.snapshot()
+    packing.save(tmp_path / "p.h5", note="test")
+    again = rve.RVE.load_file(tmp_path / "p.h5")
+    assert again.law.spec() == packing.law.spec()
+    assert again.tol == packing.tol
+    deps = np.array([[-3e-4, 0.0], [0.0, 0.0]])
+    assert np.array_equal(again.apply_strain(deps), packing.apply_strain(deps))
+    packing.restore(snap)
+
+
+def test_biaxial_step_keeps_the_lateral_stress(packing):
+    snap = packing.snapshot()
+    f0 = packing.deformation.copy()
+    s = packing.load(np.diag([0.0, -2e-3]), stress=[-1e5, 0.0], mask=[True, False])
+    assert s[0, 0] == pytest.approx(-1e5, rel=2e-3)
+    assert s[1, 1] < -1.2e5  # loaded axially
+    stretch = packing.deformation @ np.linalg.inv(f0)
+    assert stretch[1, 1] == pytest.approx(1.0 - 2e-3, rel=1e-9)
+    assert stretch[0, 0] > 1.0  # free to widen under constant lateral stress
+    packing.restore(snap)
+
+
+def test_relaxation_that_cannot_finish_says_so(packing):
+    snap = packing.snapshot()
+    packing.max_relax_steps = 10
+    try:
+        with pytest.raises(rve.RelaxationError, match="did not relax within 10 steps"):
+            packing.apply_strain(np.diag([-1e-2, 0.0]))
+    finally:
+        packing.max_relax_steps = 200_000
+        packing.restore(snap)
+
+
+def test_bad_inputs_are_refused(packing):
+    with pytest.raises(ValueError, match="finite"):
+        packing.apply_strain(np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="solid_fraction"):
+        rve.loose_cloud(2, [1.0], 0.9)
+    with pytest.raises(ValueError, match="radii must be positive"):
+        rve.particle_radii(3, -1.0)
+    with pytest.raises(ValueError, match="tangent method"):
+        packing.tangent("secant")
+    with pytest.raises(ValueError, match="unknown contact law"):
+        dem.contact.laws.law_from_spec({"law": "Glue"})

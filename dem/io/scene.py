@@ -73,9 +73,9 @@ from .text import fmt as _fmt, reason as _reason, show as _show, tname as _tname
 
 log = logging.getLogger(__name__)
 
-__all__ = ["SCHEMA", "Key", "OutputSettings", "Range", "SceneError", "Section",
-           "build_bodies", "build_simulation", "load_scene", "schema_markdown",
-           "validate_scene"]
+__all__ = ["REQUIRED", "SCHEMA", "Key", "OutputSettings", "Range", "SceneError", "Section",
+           "build_bodies", "build_simulation", "load_scene", "read_toml", "schema_markdown",
+           "validate", "validate_scene"]
 
 
 class SceneError(ValueError):
@@ -267,15 +267,20 @@ def load_scene(path):
         Unreadable file, invalid TOML or a value outside the schema.
     """
     path = Path(path)
+    return validate_scene(read_toml(path), source=str(path), base_dir=path.parent)
+
+
+def read_toml(path, what="scene"):
+    """Parse a TOML file; a :class:`SceneError` (one line) if unreadable or invalid."""
+    path = Path(path)
     try:
         text = path.read_bytes().decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
-        raise SceneError(f"{path}: cannot read scene file: {_reason(exc)}") from None
+        raise SceneError(f"{path}: cannot read {what} file: {_reason(exc)}") from None
     try:
-        data = tomllib.loads(text)
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: invalid TOML: {exc}") from None
-    return validate_scene(data, source=str(path), base_dir=path.parent)
 
 
 def validate_scene(data, source="<scene>", base_dir="."):
@@ -294,20 +299,36 @@ def validate_scene(data, source="<scene>", base_dir="."):
     ...
     dem.io.scene.SceneError: <scene>: [simulation] steps must be >= 0, got -1
     """
+    out, ctx = validate(data, SCHEMA, source, base_dir, dim_key=("simulation", "dim"))
+    _cross_checks(ctx, out)
+    return out
+
+
+def validate(data, schema, source="<file>", base_dir=".", dim_key=None, dim=3):
+    """Check parsed TOML ``data`` against a ``schema`` ({name: :class:`Section`}).
+
+    ``dim_key`` = (section, key) names the integer that sets the length of vector
+    keys (else ``dim``). Returns ``(validated, context)``: the context's ``fail``
+    raises a :class:`SceneError` in the same one-line form, for cross checks.
+    """
     ctx = _Context(source, Path(base_dir))
+    ctx.dim = dim
     if not isinstance(data, dict):
-        raise SceneError(f"{source}: a scene must be a TOML table")
+        raise SceneError(f"{source}: the file must be a TOML table")
     for name in data:
-        if name not in SCHEMA:
+        if name not in schema:
             what = "section" if isinstance(data[name], (dict, list)) else "key"
             shown = f"[{name}]" if what == "section" else f"'{name}'"
-            ctx.fail(f"unknown {what} {shown}{_suggest(name, SCHEMA)}")
-    sim = data.get("simulation")
-    if isinstance(sim, dict) and "dim" in sim:  # vectors everywhere need dim first
-        spec = SCHEMA["simulation"].keys["dim"]
-        ctx.dim = _check_value(ctx, "[simulation]", "dim", spec, sim["dim"])
+            ctx.fail(f"unknown {what} {shown}{_suggest(name, schema)}")
+    if dim_key is not None:
+        sec, key = dim_key
+        raw = data.get(sec)
+        if isinstance(raw, dict) and key in raw:  # vectors everywhere need dim first
+            ctx.dim = _check_value(ctx, f"[{sec}]", key, schema[sec].keys[key], raw[key])
+        elif schema[sec].keys[key].default not in (None, REQUIRED):
+            ctx.dim = schema[sec].keys[key].default
     out = {}
-    for name, section in SCHEMA.items():
+    for name, section in schema.items():
         raw = data.get(name)
         if section.array:
             out[name] = _validate_array(ctx, name, section, raw)
@@ -317,9 +338,8 @@ def validate_scene(data, source="<scene>", base_dir="."):
                     ctx.fail(f"missing required section [{name}]")
                 raw = {}
             out[name] = _validate_table(ctx, f"[{name}]", section, raw)
-    _cross_checks(ctx, out)
     out["source"] = source
-    return out
+    return out, ctx
 
 
 class _Context:
@@ -563,14 +583,14 @@ def _describe(spec):
     return kind + (f", {spec.unit}" if spec.unit != "-" else "")
 
 
-def schema_markdown():
-    """The scene schema as a Markdown reference (one table per section).
+def schema_markdown(schema=None):
+    """A schema (default: the scene's) as a Markdown reference, a table per section.
 
     >>> print(schema_markdown().splitlines()[0])
     ## [simulation]
     """
     lines = []
-    for name, sec in SCHEMA.items():
+    for name, sec in (SCHEMA if schema is None else schema).items():
         head = f"[[{name}]]" if sec.array else f"[{name}]"
         doc = sec.doc + (" Required." if sec.required else "")
         lines += [f"## {head}", "", doc, "",

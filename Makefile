@@ -18,7 +18,7 @@ $(STAMP): pyproject.toml
 	touch $@
 
 demo: $(STAMP)
-	$(BIN)/python -m dem.demo
+	$(BIN)/hmm demo --overwrite
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q tests --ignore=tests/mpi

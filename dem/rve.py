@@ -299,14 +299,17 @@ class RVE:
         """Homogenised Cauchy stress (d, d) [Pa], tension positive."""
         return self.response(tangent=False)["stress"]
 
-    def tangent(self, method="contact", probe=1e-5):
+    def tangent(self, method="contact", probe=1e-5, direction=None):
         """Tangent operator ``C_ijkl = d sigma_ij / d eps_kl`` (d, d, d, d) [Pa].
 
         ``method="contact"``: eq 29 from the contact stiffnesses (affine, an upper
         bound of the relaxed stiffness). ``"perturbation"``: for each symmetric
         strain direction, a probe of ``probe`` is applied from the current state and
         relaxed, and the stress difference divided by it; the state is restored
-        after each probe (the result is symmetric in kl by construction).
+        after each probe (the result is symmetric in kl by construction). A granular
+        packing is stiffer unloading than loading: ``direction`` (d, d), e.g. the
+        last strain increment, gives each probe the sign of its component, so the
+        tangent is that of the loading branch (default: positive probes).
         """
         if method == "contact":
             return self.response(tangent=True)["tangent"]
@@ -320,10 +323,13 @@ class RVE:
         for k in range(d):
             for m in range(k, d):
                 de = np.zeros((d, d))
-                # a shear probe is an engineering strain: eps_km = eps_mk = probe / 2
-                de[k, m] = de[m, k] = probe if k == m else 0.5 * probe
+                h = probe
+                if direction is not None and direction[k, m] + direction[m, k] < 0.0:
+                    h = -probe
+                # a shear probe is an engineering strain: eps_km = eps_mk = h / 2
+                de[k, m] = de[m, k] = h if k == m else 0.5 * h
                 self.apply_strain(de)
-                ds = (self.stress() - s0) / probe
+                ds = (self.stress() - s0) / h
                 if k == m:
                     c[:, :, k, k] = ds
                 else:  # d sigma / d eps_km = d sigma / d eps_mk = ds (each half)

@@ -1,0 +1,5 @@
+"""``python -m hmm`` runs the ``hmm`` command."""
+
+from .cli import main
+
+main()

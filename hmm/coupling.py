@@ -1,0 +1,197 @@
+"""Load stepping and Newton-Raphson over a farm of micro models, with step cutting.
+
+One load step from the committed state (displacement ``u``, load factor ``t``)
+to ``t + dt``, in this order:
+
+1. **Predictor.** The prescribed displacements move by their share of the step;
+   the free ones come from the committed tangents (``K_c du = f_ext(t + dt) -
+   f_int(sigma_c)``), so the first trial already sees a sensible strain field.
+2. **Iterations.** ``farm.trial(eps(du))`` gives stresses and tangents from the
+   committed micro states; the residual ``r = f_int - f_ext`` on the free degrees
+   of freedom and the correction ``K dd = -r`` follow; ``du += dd``.
+3. **Convergence** needs both ``|r_free| <= tol_residual * |f_int|`` and
+   ``|dd| <= tol_displacement * |u + du|`` (the total displacement: a micro model
+   that relaxes to a tolerance answers with noise that a cut step must not have to
+   beat); then ``farm.commit()`` and the step is
+   done. A step that has not converged in ``max_iterations``, whose residual grows
+   three times in a row, or in which a micro model fails, is **cut**:
+   ``farm.rollback()`` and the step is retried at half its size, down to
+   ``min_step`` times the nominal step, after which :class:`SolverError` stops the
+   run (the last converged step has been written).
+"""
+
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from skfem import condense, solve
+
+from .farm import MicroFailure
+
+log = logging.getLogger(__name__)
+
+
+class SolverError(RuntimeError):
+    """The load step could not be completed even at the smallest step size."""
+
+
+@dataclass
+class SolverSettings:
+    """Newton and step-cutting settings (see the module docstring)."""
+
+    tol_residual: float = 1e-3
+    tol_displacement: float = 1e-3
+    max_iterations: int = 10
+    min_step: float = 1.0 / 64.0
+
+    def __post_init__(self):
+        for name in ("tol_residual", "tol_displacement", "min_step"):
+            v = getattr(self, name)
+            if not (math.isfinite(v) and v > 0.0):
+                raise ValueError(f"{name} must be positive and finite, got {v}")
+        if int(self.max_iterations) < 1:
+            raise ValueError("max_iterations must be >= 1")
+
+
+@dataclass
+class Supports:
+    """Prescribed displacements: ``dofs`` and their values at the end of the schedule
+    (load factor 1), ramped linearly with the load factor."""
+
+    dofs: np.ndarray
+    values: np.ndarray
+    #: boundaries whose reaction forces are reported
+    boundaries: tuple = ()
+
+
+class Solver:
+    """Quasi-static multiscale solver: a :class:`~hmm.macro.Macro` and a farm.
+
+    Parameters
+    ----------
+    macro : Macro
+    farm : SerialFarm or a farm with the same calls
+    supports : Supports
+    f_const : (n_dofs,) array
+        External forces present from the start [N] (e.g. a confining pressure that
+        the micro models' initial stress already balances).
+    f_ramp : (n_dofs,) array
+        External forces at load factor 1 on top of ``f_const``, ramped linearly.
+    settings : SolverSettings
+    """
+
+    def __init__(self, macro, farm, supports, f_const=None, f_ramp=None, settings=None):
+        self.macro = macro
+        self.farm = farm
+        self.supports = supports
+        n = macro.n_dofs
+        self.f_const = np.zeros(n) if f_const is None else np.asarray(f_const, float)
+        self.f_ramp = np.zeros(n) if f_ramp is None else np.asarray(f_ramp, float)
+        self.settings = settings or SolverSettings()
+        if farm.n != macro.n_gp:
+            raise ValueError(f"the farm has {farm.n} micro models for {macro.n_gp} "
+                             f"Gauss points")
+        self.u = np.zeros(n)
+        self.t = 0.0
+        self.sigma = farm.stress()
+        # committed tangents: the micro models' response to a zero increment
+        _, self.tangent = farm.trial(np.zeros((farm.n, macro.dim, macro.dim)))
+        farm.rollback()
+        self.free = np.setdiff1d(np.arange(n), supports.dofs)
+        # displacements below round-off of the mesh size count as zero
+        self._u_floor = 1e-12 * float(np.ptp(macro.mesh.p, axis=1).max())
+        self.iterations = []  # Newton iterations of each converged step
+        self.cuts = 0
+
+    def f_ext(self, t):
+        return self.f_const + t * self.f_ramp
+
+    def reactions(self):
+        """Force [N] the supports exert on the body, per supported boundary, at the
+        committed state (``{boundary: (d,)}``): the internal force that external
+        loads do not balance."""
+        r = self.macro.internal_force(self.sigma) - self.f_ext(self.t)
+        return {name: np.array([r[self.macro.dofs(name, c)].sum()
+                                for c in range(self.macro.dim)])
+                for name in self.supports.boundaries}
+
+    # ------------------------------------------------------------------ one step
+    def advance(self, dt, on_iteration=None):
+        """Take the load factor from ``t`` to ``t + dt``, cutting as needed.
+
+        Returns the number of Newton iterations of the last (successful) attempt.
+        """
+        target = self.t + dt
+        nominal = dt
+        while self.t < target - 1e-12 * nominal:
+            h = min(dt, target - self.t)
+            try:
+                its = self._attempt(h, on_iteration)
+            except _NotConverged as why:
+                self.farm.rollback()
+                self.cuts += 1
+                dt = 0.5 * h
+                log.info("step from t = %.6g with dt = %.3g cut: %s", self.t, h, why)
+                if dt < self.settings.min_step * nominal:
+                    raise SolverError(
+                        f"load step at t = {self.t:.6g} did not converge even at "
+                        f"{self.settings.min_step:g} x the step ({why}); the last "
+                        f"converged state is saved") from None
+                continue
+            self.iterations.append(its)
+            dt = min(2.0 * dt, nominal)  # grow back after a cut
+        return its
+
+    def _attempt(self, h, on_iteration):
+        macro, farm, st = self.macro, self.farm, self.settings
+        sup = self.supports
+        f_ext = self.f_ext(self.t + h)
+        du = np.zeros(macro.n_dofs)
+        du[sup.dofs] = h * sup.values
+        # predictor from the committed tangents
+        k_c = macro.stiffness(self.tangent)
+        r_c = macro.internal_force(self.sigma) - f_ext
+        du = solve(*condense(k_c, -r_c, x=du, D=sup.dofs))
+        growth = 0
+        last = math.inf
+        prev, omega = None, 1.0
+        for it in range(1, st.max_iterations + 1):
+            try:
+                sig, c = farm.trial(macro.strain(du))
+            except MicroFailure as err:
+                raise _NotConverged(str(err)) from err
+            f_int = macro.internal_force(sig)
+            r = f_int - f_ext
+            rn = float(np.linalg.norm(r[self.free]))
+            ref = max(float(np.linalg.norm(f_int)), float(np.linalg.norm(f_ext)), 1e-300)
+            if not math.isfinite(rn):
+                raise _NotConverged("non-finite residual")
+            dd = solve(*condense(macro.stiffness(c), -r, D=sup.dofs))
+            dn = float(np.linalg.norm(dd))
+            un = max(float(np.linalg.norm(self.u + du)), self._u_floor)
+            if on_iteration is not None:
+                on_iteration(it, rn / ref, dn / un)
+            if rn <= st.tol_residual * ref and dn <= st.tol_displacement * un:
+                self.u += du
+                self.t += h
+                self.sigma, self.tangent = sig, c
+                farm.commit()
+                return it
+            growth = growth + 1 if rn > last else 0
+            if growth >= 3:
+                raise _NotConverged(f"residual grew three times (|r|/|f| = {rn / ref:.3g})")
+            last = rn
+            if prev is not None:  # Aitken relaxation of the corrections
+                diff = dd - prev
+                den = float(diff @ diff)
+                if den > 0.0:
+                    omega = min(max(-omega * float(prev @ diff) / den, 0.5), 8.0)
+            prev = dd
+            du += omega * dd
+        raise _NotConverged(f"no convergence in {st.max_iterations} iterations "
+                            f"(|r|/|f| = {rn / ref:.3g}, |du|/|u| = {dn / un:.3g})")
+
+
+class _NotConverged(Exception):
+    pass

@@ -1,0 +1,524 @@
+"""The standalone RVE compression test: ``hmm rve rve.toml``.
+
+A periodic packing (generated and consolidated, or read from a file) is brought
+isotropically to the confining pressure, then compressed along its last axis (y in
+2D, z in 3D) in equal increments of axial strain while a servo holds the lateral
+stresses at the confining pressure: a drained biaxial test in 2D, a drained triaxial
+test in 3D. After every increment the cell relaxes to quasi-static equilibrium
+(:meth:`dem.rve.RVE.load`) and the state is recorded.
+
+Conventions (soil mechanics, compression positive; the DEM stress itself is positive
+in tension):
+
+* axial strain ``eps_a = 1 - F_aa`` and volumetric strain ``eps_v = 1 - det F``
+  (engineering strains, ``F`` the deformation gradient of the cell since the start of
+  the compression): ``eps_v > 0`` is contraction, ``eps_v < 0`` dilation;
+* principal stresses ``s1 >= s2 (>= s3)`` of ``-sigma``; 2D: ``p = (s1 + s2) / 2``,
+  ``q = (s1 - s2) / 2``, mobilised friction ``sin phi = q / p``; 3D: ``p`` the mean
+  stress, ``q = sqrt(3 J2)`` (``(s1 + 2 s3) / 3`` and ``s1 - s3`` when ``s2 = s3``),
+  ``sin phi = 3 M / (6 + M)`` with ``M = q / p``;
+* dilatancy ``sin psi = -d eps_v / (2 d eps_a - d eps_v)`` from logarithmic strain
+  rates: in 2D ``-d eps_v / d gamma`` with ``gamma = eps_1 - eps_2``; in 3D the
+  triaxial form of the Mohr-Coulomb flow rule. Positive ``psi`` is dilation.
+
+The file format is :data:`RVE_SCHEMA` (validated by :func:`dem.io.scene.validate`);
+``docs/rve.md`` holds its reference.
+"""
+
+import json
+import logging
+import math
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from dem.io.scene import REQUIRED, Key, Range, SceneError, Section, read_toml, validate
+from dem.io.scene import SCHEMA as SCENE_SCHEMA
+from dem.io.text import fmt as _fmt
+
+log = logging.getLogger(__name__)
+
+__all__ = ["RVE_SCHEMA", "CompressionResult", "cmd_rve", "dilatancy_angle",
+           "friction_angle", "load_config", "output_paths", "run_experiment",
+           "stress_invariants", "validate_config"]
+
+_POSITIVE = Range(0.0, lo_closed=False)
+_NONNEGATIVE = Range(0.0)
+
+_CONTACT_KEYS = dict(SCENE_SCHEMA["contact"].keys)
+_CONTACT_KEYS["kt"] = Key("float", "N/m", default=REQUIRED, range=_NONNEGATIVE,
+                          only=("linear",),
+                          doc="Tangential stiffness (friction acts through it).")
+
+RVE_SCHEMA = {
+    "packing": Section(doc="The periodic packing: generated and consolidated "
+                           "isotropically, or read from a file.", required=True, keys={
+        "dim": Key("int", default=2, choices=(2, 3),
+                   doc="2: disks, biaxial test; 3: spheres, triaxial test."),
+        "count": Key("int", range=Range(2.0),
+                     doc="Number of particles; required unless file."),
+        "radius": Key("radius", "m", range=_POSITIVE,
+                      doc="Radius, or [min, max] for radii uniform in that range; "
+                          "required unless file."),
+        "density": Key("float", "kg/m^3", default=2650.0, range=_POSITIVE,
+                       doc="Particle density (per unit thickness in 2D)."),
+        "seed": Key("int", default=0, range=_NONNEGATIVE,
+                    doc="Seed of the random packing (same seed, same packing)."),
+        "p0": Key("float", "Pa", range=_POSITIVE,
+                  doc="Isotropic consolidation pressure; required unless file."),
+        "consolidation_friction": Key(
+            "float", default=0.0, range=_NONNEGATIVE,
+            doc="Friction coefficient while consolidating (0: densest packing); "
+                "[contact] mu applies after."),
+        "file": Key("path", doc="Optional: a packing.h5 of an earlier run to start "
+                                "from instead (it holds the law, size and p0)."),
+    }),
+    "contact": Section(doc="The contact law; required unless [packing] file (which "
+                           "holds its law), and then an error.", variant="law",
+                       keys=_CONTACT_KEYS),
+    "test": Section(doc="The compression: axial strain in increments at constant "
+                        "lateral stress.", keys={
+        "axial_strain": Key("float", default=0.1, range=Range(0.0, 0.5, False),
+                            doc="Total axial compressive strain (engineering)."),
+        "increment": Key("float", default=1e-3, range=_POSITIVE,
+                         doc="Axial strain per recorded increment."),
+        "confining": Key("float", "Pa", range=_POSITIVE,
+                         doc="Lateral (confining) pressure; default [packing] p0."),
+        "damping": Key("float", default=0.5, range=Range(0.0, 1.0, hi_closed=False),
+                       doc="Cundall local damping coefficient."),
+        "tol": Key("float", default=1e-3, range=_POSITIVE,
+                   doc="Unbalanced-force ratio that ends a relaxation "
+                       "(consolidation included)."),
+        "stress_tol": Key("float", default=1e-3, range=_POSITIVE,
+                          doc="Relative tolerance of the lateral stress servo."),
+        "max_step_strain": Key("float", default=1e-5, range=_POSITIVE,
+                               doc="Largest strain of the cell in one time step."),
+        "max_relax_steps": Key("int", default=200_000, range=Range(1.0),
+                               doc="Step cap of one relaxation (then the test fails)."),
+    }),
+    "output": Section(doc="Files written by `hmm rve`.", keys={
+        "dir": Key("str", doc="Output directory; default output/<file stem>."),
+    }),
+}
+
+#: [packing] keys that describe a packing to generate (not used with ``file``)
+_GENERATION_KEYS = ("dim", "count", "radius", "density", "seed", "p0",
+                    "consolidation_friction")
+
+#: written by a test: curves and summary, figure, and (generated packings) the packing
+OUTPUTS = ("rve_test.h5", "rve_test.png", "packing.h5")
+
+
+# --------------------------------------------------------------------------- input
+def load_config(path):
+    """Read and validate an RVE test file; returns as :func:`validate_config`.
+
+    Raises :class:`~dem.io.scene.SceneError` (one line) for an unreadable file,
+    invalid TOML or a value outside :data:`RVE_SCHEMA`.
+    """
+    path = Path(path)
+    return validate_config(read_toml(path, "RVE test"), str(path), path.parent)
+
+
+def validate_config(data, source="<rve>", base_dir="."):
+    """Check parsed TOML ``data`` against :data:`RVE_SCHEMA`.
+
+    Returns ``{section: {key: value}}`` with defaults filled, ``[packing] file``
+    resolved against ``base_dir``, ``[output] dir`` defaulted to
+    ``output/<source stem>`` and ``"source"``. Without ``file``, ``count``,
+    ``radius`` and ``p0`` are required; with it, they and ``[contact]`` are errors.
+
+    Examples
+    --------
+    >>> c = validate_config({"packing": {"count": 50, "radius": 1e-3, "p0": 1e5},
+    ...                      "contact": {"law": "linear", "kn": 1e8, "kt": 5e7,
+    ...                                  "mu": 0.5}}, "rve.toml")
+    >>> c["test"]["confining"], c["output"]["dir"]
+    (100000.0, 'output/rve')
+    >>> validate_config({"packing": {"count": 50, "radius": 1e-3, "p0": -1}})
+    Traceback (most recent call last):
+    ...
+    dem.io.scene.SceneError: <rve>: [packing] p0 must be > 0, got -1
+    """
+    packing = data.get("packing") if isinstance(data, dict) else None
+    from_file = isinstance(packing, dict) and "file" in packing
+    schema = RVE_SCHEMA
+    if from_file:
+        for key in _GENERATION_KEYS:
+            if key in packing:
+                raise SceneError(f"{source}: [packing] {key} is not used with file "
+                                 f"(the packing, its size and law come from the file)")
+        if "contact" in data:
+            raise SceneError(f"{source}: [contact] is not used with [packing] file "
+                             f"(the law is stored in the packing file)")
+        schema = {k: v for k, v in RVE_SCHEMA.items() if k != "contact"}
+    cfg, ctx = validate(data, schema, source, base_dir, dim=2)
+    p, t = cfg["packing"], cfg["test"]
+    if from_file:
+        if not Path(p["file"]).is_file():
+            ctx.fail(f"file {p['file']} does not exist", "[packing]")
+        for key in _GENERATION_KEYS:
+            p[key] = None
+    else:
+        for key, kind in (("count", "integer"), ("radius", "number or [min, max], m"),
+                          ("p0", "number, Pa")):
+            if p[key] is None:
+                ctx.fail(f"missing required key '{key}' ({kind}; or give file)",
+                         "[packing]")
+        if t["confining"] is None:
+            t["confining"] = p["p0"]
+    if t["increment"] > t["axial_strain"]:
+        ctx.fail(f"increment = {_fmt(t['increment'])} must not exceed axial_strain = "
+                 f"{_fmt(t['axial_strain'])}", "[test]")
+    if cfg["output"]["dir"] is None:
+        stem = Path(source).stem.strip("<>") or "rve"
+        cfg["output"]["dir"] = str(Path("output") / stem)
+    return cfg
+
+
+def _law(c):
+    from dem import HertzMindlin, LinearSpring
+
+    if c["law"] == "linear":
+        return LinearSpring(kn=c["kn"], kt=c["kt"], mu=c["mu"], gamma_n=c["gamma_n"],
+                            gamma_t=c["gamma_t"], restitution=c["restitution"])
+    return HertzMindlin(young=c["young"], poisson=c["poisson"],
+                        restitution=c["restitution"], mu=c["mu"])
+
+
+def _packing(cfg):
+    """The consolidated RVE of a validated config, the confining pressure [Pa] and
+    whether the packing was generated (SceneError for unusable input)."""
+    from dem import rve as rve_mod
+    from dem.io.checkpoint import read_group
+
+    p, t = cfg["packing"], cfg["test"]
+    settings = {k: t[k] for k in ("tol", "stress_tol", "max_step_strain",
+                                  "max_relax_steps")}
+    where = f"{cfg['source']}: [packing]"
+    if p["file"] is None:
+        try:
+            law = _law(cfg["contact"])
+            rve = rve_mod.generate(p["dim"], p["count"], p["radius"], law, p["p0"],
+                                   density=p["density"], seed=p["seed"],
+                                   friction=p["consolidation_friction"],
+                                   damping=t["damping"], **settings)
+        except ValueError as exc:
+            raise SceneError(f"{where} {exc}") from None
+        return rve, t["confining"], True
+    try:
+        rve = rve_mod.RVE.load_file(p["file"], **settings)
+        stored = read_group(p["file"], "rve")["attrs"].get("p0")
+    except (OSError, ValueError) as exc:
+        raise SceneError(f"{where} cannot use file {p['file']}: {exc}") from None
+    rve.sim.damping = t["damping"]
+    confining = t["confining"] if t["confining"] is not None else stored
+    if confining is None:
+        raise SceneError(f"{cfg['source']}: [test] confining is required: "
+                         f"{p['file']} does not record its consolidation pressure")
+    return rve, float(confining), False
+
+
+# --------------------------------------------------------------------------- measures
+def stress_invariants(stress):
+    """Mean stress ``p`` and deviator ``q`` [Pa], compression positive.
+
+    Parameters
+    ----------
+    stress : (..., d, d) array_like
+        Cauchy stress [Pa], tension positive (as the DEM reports it).
+
+    Returns
+    -------
+    p, q : (...) ndarray
+        2D: ``(s1 + s2) / 2`` and ``(s1 - s2) / 2``; 3D: ``(s1 + s2 + s3) / 3`` and
+        ``sqrt(3 J2)``, with ``s_i`` the principal values of ``-stress``.
+
+    Examples
+    --------
+    >>> p, q = stress_invariants([[-3.0, 0.0], [0.0, -1.0]])
+    >>> float(p), float(q)
+    (2.0, 1.0)
+    >>> p, q = stress_invariants(np.diag([-1.0, -1.0, -4.0]))
+    >>> float(p), float(q)
+    (2.0, 3.0)
+    """
+    s = np.sort(np.linalg.eigvalsh(-np.asarray(stress, dtype=np.float64)), axis=-1)
+    if s.shape[-1] == 2:
+        return 0.5 * (s[..., 1] + s[..., 0]), 0.5 * (s[..., 1] - s[..., 0])
+    p = s.mean(axis=-1)
+    dev = s - p[..., None]
+    return p, np.sqrt(1.5 * np.einsum("...i,...i->...", dev, dev))
+
+
+def friction_angle(ratio, dim):
+    """Mobilised friction angle [deg] of stress ratios ``q / p`` (see the module).
+
+    >>> round(float(friction_angle(0.5, 2)), 6), round(float(friction_angle(1.2, 3)), 4)
+    (30.0, 30.0)
+    """
+    ratio = np.asarray(ratio, dtype=np.float64)
+    sin = ratio if dim == 2 else 3.0 * ratio / (6.0 + ratio)
+    return np.degrees(np.arcsin(np.clip(sin, -1.0, 1.0)))
+
+
+def dilatancy_angle(axial_strain, volumetric_strain):
+    """Dilatancy angle [deg] of a stretch of the test, positive when dilating.
+
+    ``sin psi = -d eps_v / (2 d eps_a - d eps_v)``, the slope ``d eps_v / d eps_a``
+    of a straight line fitted to the logarithmic strains. Arguments are engineering
+    strains (compression positive), (n,) with n >= 2; NaN for a shorter stretch.
+
+    >>> round(dilatancy_angle([0.0, 1e-6], [0.0, -1e-6]), 2)   # sin psi = 1/3
+    19.47
+    >>> dilatancy_angle([0.0, 0.05], [0.0, 0.0])                # isochoric
+    0.0
+    """
+    ea = -np.log1p(-np.asarray(axial_strain, dtype=np.float64))
+    ev = -np.log1p(-np.asarray(volumetric_strain, dtype=np.float64))
+    if ea.size < 2 or np.ptp(ea) == 0.0:
+        return math.nan
+    slope = np.polyfit(ea, ev, 1)[0]
+    sin = np.clip(-slope / (2.0 - slope), -1.0, 1.0)
+    return float(np.degrees(np.arcsin(sin))) + 0.0  # no "-0.0"
+
+
+# --------------------------------------------------------------------------- the test
+@dataclass
+class CompressionResult:
+    """Curves (one row per recorded state, row 0 the start) and summary of a test."""
+
+    curves: dict
+    summary: dict
+    config: dict
+    generated: bool
+    files: list = field(default_factory=list)
+
+
+def output_paths(cfg, out_dir=None):
+    """The files a test of ``cfg`` writes, in ``out_dir`` (default ``[output] dir``)."""
+    out = Path(cfg["output"]["dir"] if out_dir is None else out_dir)
+    names = OUTPUTS if cfg["packing"]["file"] is None else OUTPUTS[:2]
+    return [out / n for n in names]
+
+
+def run_experiment(cfg, out_dir=None, overwrite=False, progress=None):
+    """Build or load the packing, compress it, write the results.
+
+    Parameters
+    ----------
+    cfg : dict
+        A validated configuration (:func:`load_config`).
+    out_dir : str or Path, optional
+        Output directory (default ``[output] dir``); made if missing.
+    overwrite : bool
+        Replace existing output files (else FileExistsError before anything runs).
+    progress : bool, optional
+        A progress bar over the increments (default: when stderr is a terminal).
+
+    Returns
+    -------
+    CompressionResult
+
+    Raises
+    ------
+    SceneError
+        Unusable packing parameters or packing file.
+    FileExistsError
+        An output file exists and ``overwrite`` is False.
+    dem.rve.RelaxationError
+        An increment did not relax; nothing is written.
+    """
+    from dem.simulation import _progress
+
+    paths = output_paths(cfg, out_dir)
+    existing = [p for p in paths if p.exists()]
+    if existing and not overwrite:
+        raise FileExistsError(f"output file {existing[0]} exists; pass --overwrite to "
+                              f"replace it or choose another directory with --output")
+    t0 = time.perf_counter()
+    rve, confining, generated = _packing(cfg)
+    consolidated = rve.snapshot() if generated else None
+    rve.consolidate(confining)  # isotropic, at the working friction
+    t = cfg["test"]
+    n_inc = math.ceil(t["axial_strain"] / t["increment"] - 1e-9)
+    targets = np.minimum(np.arange(1, n_inc + 1) * t["increment"], t["axial_strain"])
+    show = sys.stderr.isatty() if progress is None else progress
+    bar = _progress(n_inc, bool(show))
+    if bar is not None:  # the shared bar counts time steps; this one increments
+        bar.unit, bar.unit_scale = "increment", False
+    try:
+        curves = _compress(rve, confining, targets, bar)
+    finally:
+        if bar is not None:
+            bar.close()
+    summary = _summarize(curves, rve, confining, t["increment"])
+    summary["wall_time"] = time.perf_counter() - t0
+    result = CompressionResult(curves, summary, cfg, generated, paths)
+    paths[0].parent.mkdir(parents=True, exist_ok=True)
+    _write_h5(paths[0], result)
+    _write_figure(paths[1], result)
+    if generated:
+        rve.restore(consolidated)
+        p = cfg["packing"]
+        rve.save(paths[2], p0=p["p0"], seed=p["seed"],
+                 consolidation_friction=p["consolidation_friction"])
+    return result
+
+
+def _compress(rve, confining, targets, bar):
+    """Axial increments to the engineering strains ``targets``; the curves."""
+    d = rve.dim
+    axial = d - 1
+    mask = np.arange(d) != axial
+    lateral = np.full(d, -confining)
+    f0_inv = np.linalg.inv(rve.deformation)
+    rows = [_record(rve, rve.stress(), f0_inv, 0)]
+    for target in targets:
+        f_rel = rve.deformation @ f0_inv
+        deps = np.zeros((d, d))
+        deps[axial, axial] = (1.0 - target) / f_rel[axial, axial] - 1.0
+        stress = rve.load(deps, stress=lateral, mask=mask)
+        rows.append(_record(rve, stress, f0_inv, rve.last_relax_steps))
+        if bar is not None:
+            bar.update(1)
+    curves = {k: np.array([r[k] for r in rows]) for k in rows[0]}
+    p, q = stress_invariants(curves["stress"])
+    curves.update(p=p, q=q, stress_ratio=q / p,
+                  friction_angle=friction_angle(q / p, d))
+    return curves
+
+
+def _record(rve, stress, f0_inv, steps):
+    r = rve.response(tangent=False)
+    f_rel = rve.deformation @ f0_inv
+    return {"axial_strain": 1.0 - f_rel[-1, -1],
+            "volumetric_strain": 1.0 - np.linalg.det(f_rel),
+            "stress": np.array(stress), "void_ratio": r["void_ratio"],
+            "coordination": r["coordination"], "n_contacts": r["n_contacts"],
+            "unbalanced": r["unbalanced"], "relax_steps": steps}
+
+
+def _summarize(c, rve, confining, increment):
+    d = rve.dim
+    ratio, ea, ev = c["stress_ratio"], c["axial_strain"], c["volumetric_strain"]
+    k = int(np.argmax(ratio))
+    near = np.abs(ea - ea[k]) <= max(0.01, 2.0 * increment) + 1e-12
+    late = ea >= 0.8 * ea[-1] - 1e-12
+    cs_ratio = float(ratio[late].mean())
+    return {"dim": d, "n_particles": int(rve.bodies.n), "confining": confining,
+            "initial_void_ratio": float(c["void_ratio"][0]),
+            "peak_stress_ratio": float(ratio[k]), "peak_axial_strain": float(ea[k]),
+            "peak_friction_angle": float(friction_angle(ratio[k], d)),
+            "dilatancy_angle": dilatancy_angle(ea[near], ev[near]),
+            "critical_stress_ratio": cs_ratio,
+            "critical_friction_angle": float(friction_angle(cs_ratio, d)),
+            "critical_dilatancy_angle": dilatancy_angle(ea[late], ev[late]),
+            "final_volumetric_strain": float(ev[-1]),
+            "final_void_ratio": float(c["void_ratio"][-1])}
+
+
+# --------------------------------------------------------------------------- output
+_UNITS = {"stress": "Pa", "p": "Pa", "q": "Pa", "friction_angle": "deg"}
+_SUMMARY_UNITS = {"confining": "Pa", "peak_friction_angle": "deg",
+                  "dilatancy_angle": "deg", "critical_friction_angle": "deg",
+                  "critical_dilatancy_angle": "deg", "wall_time": "s"}
+
+
+def _write_h5(path, result):
+    import h5py
+
+    from dem.io.hdf5 import publish
+
+    tmp = path.with_name(path.name + ".tmp")
+    with h5py.File(tmp, "w") as f:
+        for name, values in result.curves.items():
+            f.create_dataset(name, data=values).attrs["unit"] = _UNITS.get(name, "-")
+        for name, value in result.summary.items():
+            f.attrs[name] = value
+        f.attrs["units"] = json.dumps(_SUMMARY_UNITS)
+        f.attrs["config"] = json.dumps(result.config)
+        f.attrs["conventions"] = ("compression positive for strains, p, q; stress "
+                                  "dataset tension positive; engineering strains")
+    publish(tmp, path)
+
+
+def _write_figure(path, result):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    from dem.io.hdf5 import publish
+
+    c, s = result.curves, result.summary
+    ea = 100.0 * c["axial_strain"]
+    fig = Figure(figsize=(9.0, 3.6), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax1, ax2 = fig.subplots(1, 2)
+    ax1.plot(ea, c["stress_ratio"], "k-")
+    ax1.plot([100.0 * s["peak_axial_strain"]], [s["peak_stress_ratio"]], "ro",
+             label=f"peak, φ = {s['peak_friction_angle']:.1f}°")
+    ax1.axhline(s["critical_stress_ratio"], color="b", ls="--",
+                label=f"last 20 %, φ = {s['critical_friction_angle']:.1f}°")
+    ax1.set(xlabel="axial strain [%]", ylabel="stress ratio q/p")
+    ax1.legend(loc="lower right")
+    ax2.plot(ea, 100.0 * c["volumetric_strain"], "k-")
+    ax2.axhline(0.0, color="0.6", lw=0.8)
+    ax2.set(xlabel="axial strain [%]",
+            ylabel="volumetric strain [%] (contraction > 0)")
+    test = "biaxial" if s["dim"] == 2 else "triaxial"
+    fig.suptitle(f"drained {test} test, {s['n_particles']} particles, confining "
+                 f"{s['confining']:.4g} Pa, e0 = {s['initial_void_ratio']:.3f}")
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as fh:
+        fig.savefig(fh, format="png", dpi=120)
+    publish(tmp, path)
+
+
+# --------------------------------------------------------------------------- CLI
+def cmd_rve(args):
+    """``hmm rve FILE``: run an RVE compression test and print its summary.
+
+    ``args`` has ``file`` (the TOML), ``output`` (directory or None) and
+    ``overwrite``; optional ``no_progress``. Returns the exit status: 0 done, 1 the
+    packing did not relax, 2 bad input (invalid file, existing output).
+    """
+    from dem.simulation import SimulationError
+
+    try:
+        cfg = load_config(args.file)
+        result = run_experiment(cfg, getattr(args, "output", None),
+                                overwrite=getattr(args, "overwrite", False),
+                                progress=not getattr(args, "no_progress", False)
+                                and sys.stderr.isatty())
+    except (SceneError, OSError) as exc:  # FileExistsError is an OSError
+        return _error(exc, 2)
+    except SimulationError as exc:
+        return _error(f"the test failed: {exc}", 1)
+    except KeyboardInterrupt:
+        return _error("interrupted", 130)
+    s = result.summary
+    kind = "biaxial" if s["dim"] == 2 else "triaxial"
+    grains = "disks" if s["dim"] == 2 else "spheres"
+    lo = 0.8 * result.curves["axial_strain"][-1]
+    print(f"hmm rve {args.file}: drained {kind} test, {s['n_particles']} {grains}, "
+          f"confining {s['confining']:.4g} Pa\n"
+          f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
+          f"  peak friction angle      {s['peak_friction_angle']:.2f} deg "
+          f"(q/p = {s['peak_stress_ratio']:.4f} at axial strain "
+          f"{100 * s['peak_axial_strain']:.2f} %)\n"
+          f"  dilatancy angle at peak  {s['dilatancy_angle']:.2f} deg\n"
+          f"  critical friction angle  {s['critical_friction_angle']:.2f} deg "
+          f"(mean over axial strain >= {100 * lo:.2f} %)\n"
+          f"  volumetric strain        {100 * s['final_volumetric_strain']:.3f} % "
+          f"at the end (contraction > 0)\n"
+          f"  wall time                {s['wall_time']:.3g} s\n"
+          f"  output                   {', '.join(str(p) for p in result.files)}")
+    return 0
+
+
+def _error(msg, code):
+    print("hmm rve: error: " + " ".join(str(msg).split()), file=sys.stderr)
+    return code

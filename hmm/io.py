@@ -1,0 +1,254 @@
+"""Output of a multiscale run: HDF5 fields with an XDMF file for ParaView, and plots.
+
+``fields.h5``::
+
+    /mesh/points (n_vertices, 3) [m], /mesh/cells (n_elems, k) int64
+    /gauss/points (n_gp, d) [m], /gauss/weights (n_gp,) [m^d]
+    /steps/NNNNN/  attrs: step, load_factor, iterations
+        displacement (n_vertices, 3) [m]
+        element data, (n_elems,) each -- Gauss-point means:
+            stress_xx ... [Pa], strain_xx ... [-], deviatoric_strain [-],
+            mean_stress p [Pa] (compression positive), stress_ratio q/p [-],
+            void_ratio, coordination, dem_fraction (share of points that ran DEM)
+        gauss/stress (n_gp, d, d), gauss/strain (n_gp, d, d), gauss/ran_dem (n_gp,)
+    /curve/  load_factor, displacement, force (per supported boundary, per step)
+
+``fields.xdmf`` references it (a temporal collection, one grid per written step);
+``load_displacement.png`` and ``deviatoric_strain.png`` show the run; written at
+:meth:`Output.close`.
+"""
+
+import logging
+import os
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+_TOPOLOGY = {"quad1": "Quadrilateral", "quad2": "Quadrilateral", "tri1": "Triangle",
+             "tri2": "Triangle", "hex1": "Hexahedron", "tet1": "Tetrahedron"}
+#: skfem's hexahedron vertex order -> VTK/XDMF order
+_HEX_ORDER = [0, 3, 6, 2, 1, 5, 7, 4]
+_AXES = "xyz"
+
+
+def _components(d):
+    return [(a, b) for a in range(d) for b in range(a, d)]
+
+
+def _p_q(sig):
+    """Mean stress p (compression positive) and q/p per row of (n, d, d)."""
+    d = sig.shape[1]
+    p = -np.trace(sig, axis1=1, axis2=2) / d
+    s = sig + p[:, None, None] * np.eye(d)
+    q = np.sqrt((0.5 if d == 2 else 1.5) * np.einsum("nij,nij->n", s, s))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return p, np.where(p > 0.0, q / p, np.nan)
+
+
+class Output:
+    """Writes the steps of a run into ``directory``.
+
+    Parameters
+    ----------
+    directory : path
+    macro : Macro
+    boundaries : sequence of str
+        Supported boundaries whose reaction forces make the load-displacement curve.
+    every : int
+        Steps between field frames (the curve gets every step).
+    overwrite : bool
+        Replace an existing ``fields.h5``; otherwise refuse (FileExistsError).
+    """
+
+    def __init__(self, directory, macro, boundaries, every=1, overwrite=False,
+                 driven=()):
+        self.dir = Path(directory)
+        self.macro = macro
+        self.boundaries = tuple(boundaries)
+        #: (boundary, component) pairs whose displacement is prescribed non-zero:
+        #: the load-displacement curves
+        self.driven = tuple(driven)
+        self.every = int(every)
+        self.path = self.dir / "fields.h5"
+        if self.path.exists() and not overwrite:
+            raise FileExistsError(f"{self.path} exists (pass --overwrite to replace it)")
+        self.dir.mkdir(parents=True, exist_ok=True)
+        self.f = h5py.File(self.path, "w")
+        mesh = macro.mesh
+        pts = np.zeros((mesh.p.shape[1], 3))
+        pts[:, :macro.dim] = mesh.p.T
+        cells = mesh.t.T.astype(np.int64)
+        if macro.element == "hex1":
+            cells = cells[:, _HEX_ORDER]
+        self.f.create_dataset("mesh/points", data=pts)
+        self.f.create_dataset("mesh/cells", data=cells)
+        self.f.create_dataset("gauss/points", data=macro.gauss_points())
+        self.f.create_dataset("gauss/weights", data=macro.weights())
+        self.frames = []  # (group name, load factor)
+        self.curve = {"load_factor": [], "iterations": [], "dem_points": []}
+        for b in self.boundaries:
+            self.curve[f"displacement/{b}"] = []
+            self.curve[f"force/{b}"] = []
+
+    def write(self, step, solver, measures, iterations, force_frame=False):
+        """Record step ``step`` of ``solver`` (committed state) and ``measures`` (the
+        farm's per-point arrays)."""
+        macro, d = self.macro, self.macro.dim
+        u = solver.u
+        reactions = solver.reactions()
+        self.curve["load_factor"].append(solver.t)
+        self.curve["iterations"].append(iterations)
+        self.curve["dem_points"].append(int(np.sum(measures["ran_dem"] > 0)))
+        for b in self.boundaries:
+            disp = np.array([u[macro.dofs(b, c)].mean() for c in range(d)])
+            self.curve[f"displacement/{b}"].append(disp)
+            self.curve[f"force/{b}"].append(reactions[b])
+        if not (force_frame or step % self.every == 0):
+            return
+        name = f"steps/{step:05d}"
+        g = self.f.create_group(name)
+        g.attrs["step"] = step
+        g.attrs["load_factor"] = solver.t
+        g.attrs["iterations"] = iterations
+        disp = np.zeros((macro.mesh.p.shape[1], 3))
+        disp[:, :d] = macro.nodal_displacement(u)
+        g.create_dataset("displacement", data=disp)
+        sig = solver.sigma
+        eps = macro.strain(u)
+        ne, nq = macro.n_elems, macro.n_qp
+
+        def emean(a):
+            return a.reshape(ne, nq, *a.shape[1:]).mean(axis=1)
+
+        for a, b in _components(d):
+            g.create_dataset(f"stress_{_AXES[a]}{_AXES[b]}", data=emean(sig[:, a, b]))
+            g.create_dataset(f"strain_{_AXES[a]}{_AXES[b]}", data=emean(eps[:, a, b]))
+        dev = eps - np.trace(eps, axis1=1, axis2=2)[:, None, None] / d * np.eye(d)
+        g.create_dataset("deviatoric_strain",
+                         data=emean(np.sqrt(2.0 / 3.0 * np.einsum("nij,nij->n", dev, dev))))
+        p, ratio = _p_q(sig)
+        g.create_dataset("mean_stress", data=emean(p))
+        g.create_dataset("stress_ratio", data=emean(ratio))
+        for k in ("void_ratio", "coordination"):
+            g.create_dataset(k, data=emean(np.asarray(measures[k], float)))
+        g.create_dataset("dem_fraction", data=emean(np.asarray(measures["ran_dem"], float)))
+        g.create_dataset("gauss/stress", data=sig)
+        g.create_dataset("gauss/strain", data=eps)
+        g.create_dataset("gauss/ran_dem", data=np.asarray(measures["ran_dem"], bool))
+        self.f.flush()
+        self.frames.append((name, solver.t))
+
+    def close(self):
+        """Write the curve, the XDMF file and the plots; close the HDF5 file."""
+        if self.f is None:
+            return
+        for k, v in self.curve.items():
+            self.f.create_dataset(f"curve/{k}", data=np.asarray(v, dtype=np.float64))
+        keys = [k for k in self.f[self.frames[0][0]]
+                if isinstance(self.f[self.frames[0][0]][k], h5py.Dataset)] \
+            if self.frames else []
+        self.f.close()
+        self.f = None
+        self._xdmf(keys)
+        try:
+            self._plots()
+        except Exception as err:  # noqa: BLE001 - a plot must not lose a finished run
+            log.warning("plots not written: %s", err)
+
+    def _xdmf(self, keys):
+        macro = self.macro
+        n_pts = macro.mesh.p.shape[1]
+        cells = macro.mesh.t.shape
+        h5 = self.path.name
+        root = ET.Element("Xdmf", {"Version": "2.0"})
+        dom = ET.SubElement(root, "Domain")
+        coll = ET.SubElement(dom, "Grid", {"Name": "steps", "GridType": "Collection",
+                                           "CollectionType": "Temporal"})
+
+        def item(parent, ref, shape, kind="Float", prec=8):
+            it = ET.SubElement(parent, "DataItem", {
+                "Dimensions": " ".join(map(str, shape)), "NumberType": kind,
+                "Precision": str(prec), "Format": "HDF"})
+            it.text = f"{h5}:/{ref}"
+
+        for name, t in self.frames:
+            grid = ET.SubElement(coll, "Grid", {"Name": name, "GridType": "Uniform"})
+            ET.SubElement(grid, "Time", {"Value": f"{t:.10g}"})
+            topo = ET.SubElement(grid, "Topology", {
+                "TopologyType": _TOPOLOGY[macro.element],
+                "NumberOfElements": str(cells[1])})
+            item(topo, "mesh/cells", (cells[1], cells[0]), "Int")
+            geo = ET.SubElement(grid, "Geometry", {"GeometryType": "XYZ"})
+            item(geo, "mesh/points", (n_pts, 3))
+            att = ET.SubElement(grid, "Attribute", {"Name": "displacement",
+                                                     "AttributeType": "Vector",
+                                                     "Center": "Node"})
+            item(att, f"{name}/displacement", (n_pts, 3))
+            for k in keys:
+                if k == "displacement":
+                    continue
+                att = ET.SubElement(grid, "Attribute", {"Name": k, "AttributeType":
+                                                         "Scalar", "Center": "Cell"})
+                item(att, f"{name}/{k}", (cells[1],))
+        tmp = self.dir / "fields.xdmf.tmp"
+        ET.ElementTree(root).write(tmp, xml_declaration=True, encoding="utf-8")
+        os.replace(tmp, self.dir / "fields.xdmf")
+
+    def _plots(self):
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+        from matplotlib.collections import PolyCollection
+
+        c = {k: np.asarray(v) for k, v in self.curve.items()}
+        fig, ax = plt.subplots(figsize=(5.5, 4))
+        d = self.macro.dim
+        for b, a in self.driven:
+            u, f = c[f"displacement/{b}"], c[f"force/{b}"]
+            if u.size == 0:
+                continue
+            sign = -1.0 if u[-1, a] < 0.0 else 1.0  # plot shortening as positive
+            ax.plot(sign * u[:, a], sign * f[:, a], "o-", ms=3,
+                    label=f"{b}, {_AXES[a]} component")
+        ax.set_xlabel("prescribed displacement [m] (positive: into the sample)")
+        ax.set_ylabel("reaction force [N]" + (" per m thickness" if d == 2 else ""))
+        ax.grid(alpha=0.3)
+        ax.legend()
+        fig.tight_layout()
+        fig.savefig(self.dir / "load_displacement.png", dpi=120)
+        plt.close(fig)
+        if d != 2 or not self.frames:
+            return
+        with h5py.File(self.path, "r") as f:
+            name = self.frames[-1][0]
+            disp = f[name]["displacement"][:, :2]
+            dev = f[name]["deviatoric_strain"][()]
+            dem = f[name]["dem_fraction"][()]
+        mesh = self.macro.mesh
+        scale = 1.0
+        span = np.ptp(mesh.p, axis=1).max()
+        if np.abs(disp).max() > 0.0:
+            scale = min(10.0, 0.1 * span / np.abs(disp).max())
+        xy = mesh.p.T + scale * disp
+        polys = xy[mesh.t.T]
+        fig, axs = plt.subplots(1, 2, figsize=(8, 5))
+        for ax, val, title, cmap, lim in (
+                (axs[0], dev, "deviatoric strain", "viridis", (None, None)),
+                (axs[1], dem, "share of Gauss points running DEM", "Greys", (0.0, 1.0))):
+            pc = PolyCollection(polys, array=val, cmap=cmap, edgecolors="k",
+                                linewidths=0.3)
+            pc.set_clim(*lim)
+            ax.add_collection(pc)
+            ax.autoscale()
+            ax.set_aspect("equal")
+            ax.set_title(title, fontsize=10)
+            fig.colorbar(pc, ax=ax, shrink=0.8)
+        fig.suptitle(f"final step, displacements x {scale:.3g}", fontsize=10)
+        fig.tight_layout()
+        fig.savefig(self.dir / "deviatoric_strain.png", dpi=120)
+        plt.close(fig)

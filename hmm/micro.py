@@ -1,0 +1,314 @@
+"""Micro models: the material response at one Gauss point.
+
+Every model follows one protocol, the contract of the macro solver with its Gauss
+points (YADE's FEMxDEM pattern):
+
+``trial(deps) -> (sigma, C)``
+    The Cauchy stress (d, d) [Pa] and the tangent ``C_ijkl = d sigma_ij / d eps_kl``
+    (d, d, d, d) [Pa] after the strain increment ``deps`` (d, d), always measured
+    from the last *committed* state: a Newton iteration may call it many times.
+``commit()``
+    The last trial becomes the committed state (the load step converged).
+``rollback()``
+    Forget the trials since the last commit (the step is cut and retried).
+``measures()``
+    A dict of floats describing the committed state (``void_ratio``,
+    ``coordination``, ``ran_dem``: 1.0 where the DEM ran), written with the fields.
+
+Stress is positive in tension; strains are small-strain increments of the
+displacement gradient (symmetric from the macro solver). 2D models are plane strain.
+"""
+
+import math
+import time
+
+import numpy as np
+
+
+def isotropic_tangent(dim, bulk, shear):
+    """``C = K I (x) I + 2 G (I_sym - I (x) I / d)`` (d, d, d, d) [Pa].
+
+    In 2D this is the plane-strain tangent with the 3D bulk modulus replaced by its
+    in-plane value ``K = lambda + G`` (so ``K = E / (2 (1 + nu)(1 - 2 nu))``).
+    """
+    eye = np.eye(dim)
+    ii = np.einsum("ij,kl->ijkl", eye, eye)
+    sym = 0.5 * (np.einsum("ik,jl->ijkl", eye, eye) + np.einsum("il,jk->ijkl", eye, eye))
+    return bulk * ii + 2.0 * shear * (sym - ii / dim)
+
+
+def lame(young, poisson):
+    """Lame's ``lambda`` and shear modulus ``G`` [Pa] from E and nu."""
+    if not (young > 0.0 and math.isfinite(young)):
+        raise ValueError(f"young must be positive and finite, got {young}")
+    if not -1.0 < poisson < 0.5:
+        raise ValueError(f"poisson must be in (-1, 0.5), got {poisson}")
+    g = young / (2.0 * (1.0 + poisson))
+    return young * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson)), g
+
+
+class MicroModel:
+    """Base of the micro models (see the module docstring for the protocol)."""
+
+    dim = 2
+    ran_dem = False
+
+    def trial(self, deps):
+        raise NotImplementedError
+
+    def commit(self):
+        raise NotImplementedError
+
+    def rollback(self):
+        raise NotImplementedError
+
+    def measures(self):
+        return {"void_ratio": math.nan, "coordination": math.nan,
+                "ran_dem": float(self.ran_dem)}
+
+
+class LinearElastic(MicroModel):
+    """Isotropic linear elasticity (plane strain in 2D) about an initial stress.
+
+    Parameters
+    ----------
+    young, poisson : float
+        E [Pa] and nu [-].
+    dim : 2 or 3
+    stress0 : (d, d) array_like or float, optional
+        Initial stress [Pa]; a float ``s`` means ``s I`` (``-p0`` for a confined
+        packing).
+
+    Examples
+    --------
+    >>> m = LinearElastic(1e6, 0.25, dim=2)
+    >>> s, c = m.trial(np.diag([1e-3, 0.0]))
+    >>> round(float(s[0, 0]) / 1e3, 1), round(float(s[1, 1]) / 1e3, 1)  # plane strain
+    (1200.0, 400.0)
+    """
+
+    def __init__(self, young, poisson, dim=2, stress0=0.0):
+        lam, g = lame(young, poisson)
+        self.dim = int(dim)
+        self.tangent = isotropic_tangent(self.dim, lam + 2.0 * g / self.dim, g)
+        s0 = np.asarray(stress0, dtype=np.float64)
+        self.stress = s0 * np.eye(self.dim) if s0.ndim == 0 else s0.copy()
+        self._trial = self.stress.copy()
+
+    def trial(self, deps):
+        eps = 0.5 * (deps + deps.T)
+        self._trial = self.stress + np.einsum("ijkl,kl->ij", self.tangent, eps)
+        return self._trial.copy(), self.tangent
+
+    def commit(self):
+        self.stress = self._trial.copy()
+
+    def rollback(self):
+        self._trial = self.stress.copy()
+
+
+class Hyperbolic(MicroModel):
+    """Nonlinear elasticity with a shear modulus that softens with shear strain.
+
+    ``sigma = sigma0 + K tr(eps) I + 2 G(g) e`` with ``e`` the deviatoric strain,
+    ``g = sqrt(2 e:e)`` and ``G(g) = G0 / (1 + g / g_ref)`` (a hyperbolic
+    stress-strain curve: the shear stress tends to ``G0 g_ref``). The response is
+    path-independent with an exact (consistent) tangent: the reference against which
+    Newton's quadratic convergence is tested.
+
+    Parameters
+    ----------
+    young, poisson : float
+        Small-strain E [Pa] and nu [-] (give K and G0).
+    gamma_ref : float
+        Reference shear strain [-].
+    dim : 2 or 3
+    stress0 : float or (d, d), optional
+        Initial stress [Pa].
+    """
+
+    def __init__(self, young, poisson, gamma_ref, dim=2, stress0=0.0):
+        lam, g0 = lame(young, poisson)
+        if not gamma_ref > 0.0:
+            raise ValueError(f"gamma_ref must be positive, got {gamma_ref}")
+        self.dim = int(dim)
+        self.bulk = lam + 2.0 * g0 / self.dim
+        self.g0 = g0
+        self.gamma_ref = float(gamma_ref)
+        s0 = np.asarray(stress0, dtype=np.float64)
+        self.stress0 = s0 * np.eye(self.dim) if s0.ndim == 0 else s0.copy()
+        self.strain = np.zeros((self.dim, self.dim))
+        self._trial_strain = self.strain.copy()
+
+    def response(self, eps):
+        """Stress and tangent at total strain ``eps`` (d, d)."""
+        d = self.dim
+        eye = np.eye(d)
+        e = eps - np.trace(eps) / d * eye
+        gam = math.sqrt(2.0 * np.sum(e * e))
+        g = self.g0 / (1.0 + gam / self.gamma_ref)
+        sig = self.stress0 + self.bulk * np.trace(eps) * eye + 2.0 * g * e
+        c = isotropic_tangent(d, self.bulk, g)
+        if gam > 0.0:  # d(2 G(g) e)/d eps adds 2 G'(g) e (x) dg/deps, dg/deps = 2 e / g
+            dg = -self.g0 / self.gamma_ref / (1.0 + gam / self.gamma_ref) ** 2
+            c += 4.0 * dg / gam * np.einsum("ij,kl->ijkl", e, e)
+        return sig, c
+
+    def trial(self, deps):
+        self._trial_strain = self.strain + 0.5 * (deps + deps.T)
+        return self.response(self._trial_strain)
+
+    def commit(self):
+        self.strain = self._trial_strain.copy()
+
+    def rollback(self):
+        self._trial_strain = self.strain.copy()
+
+    @property
+    def stress(self):
+        return self.response(self.strain)[0]
+
+
+class DEMMicroModel(MicroModel):
+    """One periodic DEM RVE (:class:`dem.rve.RVE`) at a Gauss point.
+
+    A trial restores the committed state (a copy into preallocated arrays) unless
+    nothing has moved since, applies the strain increment under strain control,
+    relaxes, and returns the Love-Weber stress and the tangent (``"contact"``: eq 29;
+    ``"perturbation"``: relaxed probes, costlier and exact for the relaxed state).
+    """
+
+    ran_dem = True
+
+    def __init__(self, rve, tangent="contact", probe=1e-5):
+        if tangent not in ("contact", "perturbation"):
+            raise ValueError(f"tangent must be 'contact' or 'perturbation', got {tangent!r}")
+        self.rve = rve
+        self.dim = rve.dim
+        self.tangent_method = tangent
+        self.probe = float(probe)
+        self._committed = rve.snapshot()
+        self._moved = False
+        self.stress = rve.stress()
+        self._trial_stress = self.stress
+        self.cost = 0.0  # seconds of the last trial
+        self.steps = 0  # DEM steps of the last trial
+
+    def trial(self, deps):
+        t0 = time.perf_counter()
+        rve = self.rve
+        if self._moved:
+            rve.restore(self._committed)
+        self._moved = True
+        step0 = rve.sim.step
+        sig = rve.apply_strain(deps)
+        c = rve.tangent(self.tangent_method, self.probe, direction=deps)
+        self.steps = rve.sim.step - step0
+        self._trial_stress = sig
+        self.cost = time.perf_counter() - t0
+        return sig, c
+
+    def commit(self):
+        self.rve.snapshot(into=self._committed)
+        self._moved = False
+        self.stress = self._trial_stress
+
+    def rollback(self):
+        if self._moved:
+            self.rve.restore(self._committed)
+            self._moved = False
+        self._trial_stress = self.stress
+
+    def elastic_tangent(self):
+        """The contact tangent of the committed state (no motion)."""
+        if self._moved:
+            self.rollback()
+        return self.rve.tangent("contact")
+
+    def measures(self):
+        if self._moved:
+            self.rollback()
+        r = self.rve.response(tangent=False)
+        return {"void_ratio": r["void_ratio"], "coordination": r["coordination"],
+                "ran_dem": 1.0}
+
+
+def stress_ratio(sig):
+    """Deviatoric over mean stress, ``q / p`` with ``p = -tr(sigma) / d`` and
+    ``q = sqrt(3/2 s:s)`` (3D) or the radius of Mohr's circle (2D)."""
+    d = sig.shape[0]
+    p = -np.trace(sig) / d
+    s = sig + p * np.eye(d)
+    q = math.sqrt(0.5 * np.sum(s * s)) if d == 2 else math.sqrt(1.5 * np.sum(s * s))
+    return q / p if p > 0.0 else math.inf
+
+
+class Adaptive(MicroModel):
+    """An RVE that runs only once its Gauss point leaves the elastic range.
+
+    While the strain accumulated since the RVE last ran stays below
+    ``strain_threshold`` (Frobenius norm) and the trial stress ratio (see
+    :func:`stress_ratio`) stays below ``ratio_threshold``, the point answers with the
+    RVE's own contact tangent, ``sigma = sigma_c + C_e : deps``, at the cost of a
+    matrix product. The first trial outside that range hands the accumulated strain
+    to the RVE; once such a trial is committed the point runs the DEM from then on.
+    """
+
+    def __init__(self, dem_model, strain_threshold=1e-4, ratio_threshold=0.3):
+        if not (strain_threshold > 0.0 and ratio_threshold > 0.0):
+            raise ValueError("strain_threshold and ratio_threshold must be positive")
+        self.dem = dem_model
+        self.dim = dem_model.dim
+        self.strain_threshold = float(strain_threshold)
+        self.ratio_threshold = float(ratio_threshold)
+        self.c_elastic = dem_model.elastic_tangent()
+        self.active = False  # the DEM runs from now on (committed)
+        self.pending = np.zeros((self.dim, self.dim))  # elastic strain the RVE owes
+        self.stress = dem_model.stress.copy()
+        self._trial_stress = self.stress
+        self._trial_active = False
+        self._trial_deps = np.zeros((self.dim, self.dim))
+        self.cost = 0.0
+        self.steps = 0
+
+    @property
+    def ran_dem(self):
+        return self.active
+
+    def trial(self, deps):
+        if not self.active:
+            total = self.pending + deps
+            eps = 0.5 * (deps + deps.T)
+            sig = self.stress + np.einsum("ijkl,kl->ij", self.c_elastic, eps)
+            if (np.linalg.norm(total) < self.strain_threshold
+                    and stress_ratio(sig) < self.ratio_threshold):
+                self._trial_active = False
+                self._trial_stress = sig
+                self._trial_deps = np.array(deps, dtype=np.float64)
+                self.cost, self.steps = 0.0, 0
+                return sig, self.c_elastic
+            deps = total
+        self._trial_active = True
+        sig, c = self.dem.trial(deps)
+        self._trial_stress = sig
+        self.cost, self.steps = self.dem.cost, self.dem.steps
+        return sig, c
+
+    def commit(self):
+        if self._trial_active:
+            self.dem.commit()
+            self.active = True
+            self.pending[:] = 0.0
+        else:  # the RVE has not moved; it owes the committed elastic strain
+            self.pending += self._trial_deps
+        self.stress = self._trial_stress
+
+    def rollback(self):
+        self.dem.rollback()
+        self._trial_stress = self.stress
+        self._trial_active = False
+
+    def measures(self):
+        m = self.dem.measures()
+        m["ran_dem"] = float(self.active)
+        return m

@@ -1,0 +1,358 @@
+"""Problem files: the TOML description of a multiscale run, validated, and what it builds.
+
+Layout (SI units; ``d`` is ``[mesh] dim``)::
+
+    [mesh]
+    dim = 2                        # 2 (plane strain) or 3
+    element = "quad1"              # quad1 quad2 tri1 tri2 (2D), hex1 tet1 (3D)
+    size = [0.05, 0.1]             # [m] rectangle / box [0, size]
+    cells = [2, 4]                 # elements per axis
+    file = "mesh.msh"              # instead of size/cells: any mesh scikit-fem reads
+
+    [[dirichlet]]                  # prescribed displacement, ramped over the schedule
+    boundary = "bottom"            # a named boundary of the mesh
+    component = "y"                # x, y or z
+    value = 0.0                    # [m] at the end of the schedule
+
+    [[pressure]]                   # normal pressure (compression positive)
+    boundary = "left"
+    value = 1e5                    # [Pa]
+    ramp = false                   # false: present from the start (balances the RVEs'
+                                   # initial stress); true: grows with the load factor
+
+    [[traction]]                   # traction vector, ramped
+    boundary = "top"
+    value = [0.0, -1e4]            # [Pa]
+
+    [body_force]
+    value = [0.0, 0.0]             # [N/m^3], ramped
+
+    [load]
+    steps = 10                     # load steps (each may be cut and retried)
+
+    [micro]
+    model = "dem"                  # dem | adaptive | linear_elastic | hyperbolic
+    ... (see MICRO keys below)
+
+    [solver]
+    tol_residual = 1e-3
+    tol_displacement = 1e-3
+    max_iterations = 10
+    min_step = 0.015625
+
+    [output]
+    dir = "output/problem"         # default output/<file stem>
+    every = 1                      # load steps between field frames
+
+Any problem is a :class:`~dem.io.scene.SceneError` whose message is one line naming
+the file and the key. :func:`schema_markdown` gives the reference of every key.
+"""
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from dem.io.scene import REQUIRED, Key, Range, SceneError, Section, read_toml, validate
+from dem.io.scene import schema_markdown as _markdown
+
+POSITIVE = Range(0.0, lo_closed=False)
+NONNEGATIVE = Range(0.0)
+COMPONENTS = ("x", "y", "z")
+
+SCHEMA = {
+    "mesh": Section(doc="The macro domain and its finite elements.", required=True, keys={
+        "dim": Key("int", default=2, choices=(2, 3), doc="2 (plane strain) or 3."),
+        "element": Key("str", default="quad1",
+                       choices=("quad1", "quad2", "tri1", "tri2", "hex1", "tet1"),
+                       doc="Element type (2D: quad1 quad2 tri1 tri2; 3D: hex1 tet1)."),
+        "size": Key("vector", "m", range=POSITIVE,
+                    doc="Edge lengths of the rectangle/box [0, size]."),
+        "cells": Key("vector", range=Range(1.0), doc="Elements along each axis."),
+        "file": Key("path", doc="A mesh file scikit-fem reads (instead of size/cells)."),
+    }),
+    "dirichlet": Section(doc="Prescribed displacements, ramped with the load factor.",
+                         array=True, keys={
+        "boundary": Key("str", default=REQUIRED, doc="Named boundary of the mesh."),
+        "component": Key("str", default=REQUIRED, choices=COMPONENTS,
+                         doc="Displacement component."),
+        "value": Key("float", "m", default=0.0, doc="Value at the end of the schedule."),
+    }),
+    "pressure": Section(doc="Normal pressure on a boundary (compression positive).",
+                        array=True, keys={
+        "boundary": Key("str", default=REQUIRED, doc="Named boundary of the mesh."),
+        "value": Key("float", "Pa", default=REQUIRED, doc="Pressure."),
+        "ramp": Key("bool", default=False,
+                    doc="Grow with the load factor (else present from the start)."),
+    }),
+    "traction": Section(doc="Traction vector on a boundary, ramped.", array=True, keys={
+        "boundary": Key("str", default=REQUIRED, doc="Named boundary of the mesh."),
+        "value": Key("vector", "Pa", default=REQUIRED, doc="Traction at load factor 1."),
+    }),
+    "body_force": Section(doc="Body force density, ramped.", keys={
+        "value": Key("vector", "N/m^3", default=0.0, doc="Force per unit volume."),
+    }),
+    "load": Section(doc="The load schedule.", keys={
+        "steps": Key("int", default=10, range=Range(1.0), doc="Number of load steps."),
+    }),
+    "micro": Section(doc="The micro model at every Gauss point.", required=True,
+                     variant="model", keys={
+        "model": Key("str", default=REQUIRED,
+                     choices=("dem", "adaptive", "linear_elastic", "hyperbolic"),
+                     doc="dem: an RVE per point; adaptive: DEM only where needed; "
+                         "linear_elastic / hyperbolic: analytic laws."),
+        "young": Key("float", "Pa", default=REQUIRED, range=POSITIVE,
+                     only=("linear_elastic", "hyperbolic"), doc="Young's modulus."),
+        "poisson": Key("float", default=REQUIRED, range=Range(-1.0, 0.5, False, False),
+                       only=("linear_elastic", "hyperbolic"), doc="Poisson's ratio."),
+        "gamma_ref": Key("float", default=REQUIRED, range=POSITIVE, only=("hyperbolic",),
+                         doc="Reference shear strain of the hyperbolic law."),
+        "stress0": Key("float", "Pa", default=0.0, only=("linear_elastic", "hyperbolic"),
+                       doc="Initial isotropic stress (tension positive)."),
+        "packing": Key("path", only=("dem", "adaptive"),
+                       doc="A packing saved by `hmm rve` or RVE.save (else generated)."),
+        "packings": Key("int", default=1, range=Range(1.0), only=("dem", "adaptive"),
+                        doc="Distinct generated packings (seeds seed..seed+n-1), "
+                            "assigned to Gauss points in turn: material variability."),
+        "count": Key("int", default=100, range=Range(4.0), only=("dem", "adaptive"),
+                     doc="Particles per generated packing."),
+        "radius": Key("radius", "m", default=[0.8e-3, 1.2e-3], range=POSITIVE,
+                      only=("dem", "adaptive"), doc="Radius or [min, max]."),
+        "density": Key("float", "kg/m^3", default=2650.0, range=POSITIVE,
+                       only=("dem", "adaptive"), doc="Particle density."),
+        "p0": Key("float", "Pa", default=1e5, range=POSITIVE, only=("dem", "adaptive"),
+                  doc="Consolidation pressure of generated packings."),
+        "seed": Key("int", default=0, range=NONNEGATIVE, only=("dem", "adaptive"),
+                    doc="Seed of the first generated packing."),
+        "consolidation_friction": Key("float", default=0.0, range=NONNEGATIVE,
+                                      only=("dem", "adaptive"),
+                                      doc="Friction while consolidating (lower: denser)."),
+        "kn": Key("float", "N/m", default=1e8, range=POSITIVE, only=("dem", "adaptive"),
+                  doc="Normal contact stiffness (linear law)."),
+        "kt": Key("float", "N/m", default=5e7, range=NONNEGATIVE, only=("dem", "adaptive"),
+                  doc="Tangential contact stiffness."),
+        "mu": Key("float", default=0.5, range=NONNEGATIVE, only=("dem", "adaptive"),
+                  doc="Friction coefficient."),
+        "damping": Key("float", default=0.5, range=Range(0.0, 1.0, True, False),
+                       only=("dem", "adaptive"), doc="Local damping of the RVEs."),
+        "tol": Key("float", default=1e-3, range=POSITIVE, only=("dem", "adaptive"),
+                   doc="Unbalanced-force ratio that ends a relaxation."),
+        "max_step_strain": Key("float", default=1e-5, range=POSITIVE,
+                               only=("dem", "adaptive"), doc="Largest strain per step."),
+        "max_relax_steps": Key("int", default=200000, range=Range(1.0),
+                               only=("dem", "adaptive"), doc="Step cap of a relaxation."),
+        "tangent": Key("str", default="contact", choices=("contact", "perturbation"),
+                       only=("dem", "adaptive"), doc="Tangent operator of the RVEs."),
+        "strain_threshold": Key("float", default=1e-4, range=POSITIVE, only=("adaptive",),
+                                doc="Strain after which a point runs its RVE."),
+        "ratio_threshold": Key("float", default=0.3, range=POSITIVE, only=("adaptive",),
+                               doc="Stress ratio q/p after which a point runs its RVE."),
+    }),
+    "solver": Section(doc="Newton iterations and step cutting.", keys={
+        "tol_residual": Key("float", default=1e-3, range=POSITIVE,
+                            doc="Free residual over internal force norm."),
+        "tol_displacement": Key("float", default=1e-3, range=POSITIVE,
+                                doc="Correction over step displacement norm."),
+        "max_iterations": Key("int", default=10, range=Range(1.0),
+                              doc="Newton iterations before a step is cut."),
+        "min_step": Key("float", default=1.0 / 64.0, range=Range(0.0, 1.0, False, True),
+                        doc="Smallest step, as a fraction of the nominal one."),
+    }),
+    "output": Section(doc="Where results go.", keys={
+        "dir": Key("str", doc="Output directory; default output/<file stem>."),
+        "every": Key("int", default=1, range=Range(1.0),
+                     doc="Load steps between field frames."),
+    }),
+}
+
+
+def schema_markdown():
+    """The problem file reference (Markdown), generated from :data:`SCHEMA`."""
+    return _markdown(SCHEMA)
+
+
+def load_problem(path):
+    """Read and validate a problem file (a :class:`SceneError` on any problem)."""
+    path = Path(path)
+    return validate_problem(read_toml(path, "problem"), str(path), path.parent)
+
+
+def validate_problem(data, source="<problem>", base_dir="."):
+    """Check parsed TOML against :data:`SCHEMA`; defaults filled, paths resolved.
+
+    Examples
+    --------
+    >>> p = validate_problem({"mesh": {"size": [1.0, 2.0], "cells": [1, 2]},
+    ...                       "micro": {"model": "linear_elastic", "young": 1e6,
+    ...                                 "poisson": 0.3}})
+    >>> p["load"]["steps"], p["micro"]["stress0"]
+    (10, 0.0)
+    >>> validate_problem({"mesh": {"size": [1.0, 2.0], "cells": [1, 2]},
+    ...                   "micro": {"model": "dem", "young": 1e6}})
+    Traceback (most recent call last):
+    ...
+    dem.io.scene.SceneError: <problem>: [micro] young is not used with model = "dem" (only with "linear_elastic" or "hyperbolic")
+    """
+    out, ctx = validate(data, SCHEMA, source, base_dir, dim_key=("mesh", "dim"))
+    m = out["mesh"]
+    if m["file"] is None:
+        if m["size"] is None or m["cells"] is None:
+            ctx.fail("needs size and cells, or a mesh file", "[mesh]")
+        if any(c != int(c) for c in m["cells"]):
+            ctx.fail(f"cells must be integers, got {m['cells']}", "[mesh]")
+    elif m["size"] is not None or m["cells"] is not None:
+        ctx.fail("takes a mesh file or size and cells, not both", "[mesh]")
+    two_d = m["element"] in ("quad1", "quad2", "tri1", "tri2")
+    if two_d != (m["dim"] == 2):
+        ctx.fail(f"element \"{m['element']}\" does not fit dim = {m['dim']}", "[mesh]")
+    for i, c in enumerate(out["dirichlet"]):
+        if COMPONENTS.index(c["component"]) >= m["dim"]:
+            ctx.fail(f"component \"{c['component']}\" does not exist in {m['dim']}D",
+                     f"[[dirichlet]] #{i + 1}")
+    if not out["dirichlet"]:
+        ctx.fail("a quasi-static problem needs supports: add [[dirichlet]] conditions")
+    return out
+
+
+def build_macro(problem):
+    """The :class:`~hmm.macro.Macro` of a validated problem; boundary names checked."""
+    from skfem import Mesh
+
+    from .macro import ELEMENTS, Macro, structured_mesh
+
+    src = problem["source"]
+    m = problem["mesh"]
+    if m["file"] is None:
+        mesh = structured_mesh(m["element"], m["size"], [int(c) for c in m["cells"]])
+    else:
+        try:
+            mesh = Mesh.load(m["file"])
+        except Exception as err:  # noqa: BLE001 - meshio raises many kinds
+            raise SceneError(f"{src}: [mesh] cannot read mesh file {m['file']}: "
+                             f"{type(err).__name__}: {err}") from None
+        if not isinstance(mesh, ELEMENTS[m["element"]][0]):
+            raise SceneError(f"{src}: [mesh] file holds a {type(mesh).__name__}, "
+                             f"element \"{m['element']}\" needs a "
+                             f"{ELEMENTS[m['element']][0].__name__}")
+    if mesh.t.shape[1] == 0:
+        raise SceneError(f"{src}: [mesh] has no elements")
+    known = set(mesh.boundaries or {})
+    for kind in ("dirichlet", "pressure", "traction"):
+        for i, c in enumerate(problem[kind]):
+            if c["boundary"] not in known:
+                raise SceneError(f"{src}: [[{kind}]] #{i + 1} boundary "
+                                 f"\"{c['boundary']}\" is not a boundary of the mesh "
+                                 f"(known: {', '.join(sorted(known)) or 'none'})")
+    return Macro(mesh, m["element"])
+
+
+def build_loads(problem, macro):
+    """Supports and the constant and ramped external force vectors."""
+    from .coupling import Supports
+
+    dofs, values = [], []
+    for c in problem["dirichlet"]:
+        k = macro.dofs(c["boundary"], COMPONENTS.index(c["component"]))
+        dofs.append(k)
+        values.append(np.full(k.size, c["value"]))
+    dofs = np.concatenate(dofs)
+    values = np.concatenate(values)
+    dofs, first = np.unique(dofs, return_index=True)  # a corner in two conditions
+    supports = Supports(dofs, values[first],
+                        tuple(dict.fromkeys(c["boundary"] for c in problem["dirichlet"])))
+    f_const = np.zeros(macro.n_dofs)
+    f_ramp = np.zeros(macro.n_dofs)
+    for p in problem["pressure"]:
+        f = macro.pressure_force(p["boundary"], p["value"])
+        if p["ramp"]:
+            f_ramp += f
+        else:
+            f_const += f
+    for t in problem["traction"]:
+        f_ramp += macro.traction_force(t["boundary"], t["value"])
+    b = problem["body_force"]["value"]
+    if any(b):
+        f_ramp += macro.body_force(b)
+    return supports, f_const, f_ramp
+
+
+def build_farm(problem, macro, progress=None):
+    """The micro model of every Gauss point, in a :class:`~hmm.farm.SerialFarm`.
+
+    DEM points share packings: each distinct packing is generated (or read) once
+    and copied into every point that uses it.
+    """
+    from .farm import SerialFarm
+
+    return SerialFarm(build_models(problem, macro.n_gp, macro.dim, progress))
+
+
+def build_models(problem, n, dim, progress=None):
+    """The ``n`` micro models of a validated problem."""
+    from .micro import Adaptive, DEMMicroModel, Hyperbolic, LinearElastic
+
+    mc = problem["micro"]
+    kind = mc["model"]
+    if kind == "linear_elastic":
+        return [LinearElastic(mc["young"], mc["poisson"], dim, mc["stress0"])
+                for _ in range(n)]
+    if kind == "hyperbolic":
+        return [Hyperbolic(mc["young"], mc["poisson"], mc["gamma_ref"], dim,
+                           mc["stress0"]) for _ in range(n)]
+    packings = [_packing(problem, k, dim, progress) for k in range(mc["packings"])]
+    models = []
+    for g in range(n):
+        rve = clone_rve(packings[g % len(packings)])
+        m = DEMMicroModel(rve, tangent=mc["tangent"])
+        if kind == "adaptive":
+            m = Adaptive(m, mc["strain_threshold"], mc["ratio_threshold"])
+        models.append(m)
+    return models
+
+
+def _packing(problem, k, dim, progress):
+    from dem import LinearSpring
+    from dem import rve as rvemod
+
+    mc = problem["micro"]
+    src = problem["source"]
+    opts = {"damping": mc["damping"], "tol": mc["tol"],
+            "max_step_strain": mc["max_step_strain"],
+            "max_relax_steps": mc["max_relax_steps"]}
+    if mc["packing"] is not None:
+        try:
+            rve = rvemod.RVE.load_file(mc["packing"], **{k_: v for k_, v in opts.items()
+                                                         if k_ != "damping"})
+        except (OSError, ValueError) as err:
+            raise SceneError(f"{src}: [micro] packing: {err}") from None
+        if rve.dim != dim:
+            raise SceneError(f"{src}: [micro] packing is {rve.dim}D, the mesh {dim}D")
+        return rve
+    law = LinearSpring(kn=mc["kn"], kt=mc["kt"], mu=mc["mu"])
+    return rvemod.generate(dim, mc["count"], mc["radius"], law, mc["p0"],
+                           density=mc["density"], seed=mc["seed"] + k,
+                           friction=mc["consolidation_friction"], **opts)
+
+
+def clone_rve(rve):
+    """An independent copy of an RVE in its current state (bit-identical runs)."""
+    from dem import rve as rvemod
+
+    snap = rve.snapshot()
+    twin = rvemod.RVE(rve.bodies.copy(), rve.law, rve.cell.copy(),
+                      damping=rve.sim.damping, dt=rve.sim.dt, threads=rve.sim.threads,
+                      **{k: getattr(rve, k) for k in rve._SETTINGS if k != "mass_scale"})
+    twin.mass_scale = rve.mass_scale
+    twin.restore(snap)
+    return twin
+
+
+def initial_stress_check(problem, farm, tol=0.05):
+    """Relative mismatch between constant pressures and the micro models' initial
+    stress (a constant pressure should balance it); returned for the log."""
+    sig = farm.stress()
+    p_micro = -np.trace(sig, axis1=1, axis2=2).mean() / sig.shape[1]
+    const = [p["value"] for p in problem["pressure"] if not p["ramp"]]
+    if not const or not math.isfinite(p_micro) or p_micro == 0.0:
+        return 0.0
+    return abs(np.mean(const) - p_micro) / abs(p_micro)

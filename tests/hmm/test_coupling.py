@@ -1,0 +1,139 @@
+"""The macro solver: analytic patch tests on every element, Newton's convergence rate,
+initial stress in equilibrium, step cutting and its limit."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from hmm.coupling import Solver, SolverError, SolverSettings, Supports
+from hmm.farm import MicroFailure, SerialFarm
+from hmm.macro import Macro, structured_mesh
+from hmm.micro import Hyperbolic, LinearElastic, MicroModel
+
+E, NU = 1e6, 0.3
+
+
+def _rollers(macro, shorten):
+    """Smooth supports on the low faces, the top face moved down by ``shorten``."""
+    d = macro.dim
+    dofs, vals = [], []
+    for name, c in (("left", 0), ("bottom", 1), ("front", 2))[:d]:
+        k = macro.dofs(name, c)
+        dofs.append(k)
+        vals.append(np.zeros(k.size))
+    top = macro.dofs("top", 1)
+    dofs.append(top)
+    vals.append(np.full(top.size, -shorten))
+    dofs, first = np.unique(np.concatenate(dofs), return_index=True)
+    return Supports(dofs, np.concatenate(vals)[first], ("top",))
+
+
+@pytest.mark.parametrize("element", ["quad1", "quad2", "tri1", "tri2", "hex1", "tet1"])
+def test_uniaxial_compression_is_exact_on_every_element(element):
+    """Rollers on the low faces, the top pushed down: a uniform strain field that every
+    element represents exactly; the stress and the reaction are analytic (plane strain
+    in 2D: sigma_yy = E eps / (1 - nu^2); 3D with free sides: sigma_yy = E eps)."""
+    d = 2 if element in ("quad1", "quad2", "tri1", "tri2") else 3
+    size = [1.0, 2.0, 1.5][:d]
+    macro = Macro(structured_mesh(element, size, [2, 3, 2][:d]), element)
+    farm = SerialFarm([LinearElastic(E, NU, d) for _ in range(macro.n_gp)])
+    solver = Solver(macro, farm, _rollers(macro, 0.02))
+    solver.advance(1.0)
+    eps = -0.02 / size[1]
+    want = E * eps / (1 - NU**2) if d == 2 else E * eps
+    assert solver.iterations == [1]  # linear: the predictor is the answer
+    assert np.allclose(solver.sigma[:, 1, 1], want, rtol=1e-10)
+    area = np.prod(size) / size[1]
+    assert solver.reactions()["top"][1] == pytest.approx(want * area, rel=1e-10)
+
+
+def test_newton_converges_quadratically_with_a_consistent_tangent():
+    macro = Macro(structured_mesh("quad1", [1.0, 2.0], [2, 3]), "quad1")
+    farm = SerialFarm([Hyperbolic(E, NU, 1e-3) for _ in range(macro.n_gp)])
+    tight = SolverSettings(tol_residual=1e-13, tol_displacement=1e-13)
+    solver = Solver(macro, farm, _rollers(macro, 0.01), settings=tight)
+    res = []
+    solver.advance(1.0, on_iteration=lambda it, r, d: res.append(r))
+    assert res[-1] < 1e-13 and len(res) <= 7
+    # quadratic: each residual below a constant times the square of the last (until
+    # round-off)
+    for a, b in itertools.pairwise(res[1:]):
+        assert b < 10.0 * a * a or b < 1e-14
+
+
+def test_confined_initial_state_is_in_equilibrium():
+    """A pressure p0 on the free faces balances an initial stress -p0 I: a load step
+    with nothing else moves nothing."""
+    p0 = 1e5
+    macro = Macro(structured_mesh("quad1", [1.0, 1.0], [2, 2]), "quad1")
+    farm = SerialFarm([LinearElastic(E, NU, 2, stress0=-p0) for _ in range(macro.n_gp)])
+    f = macro.pressure_force("right", p0) + macro.pressure_force("top", p0)
+    solver = Solver(macro, farm, _rollers(macro, 0.0), f_const=f)
+    solver.advance(1.0)
+    assert np.abs(solver.u).max() < 1e-15
+    assert np.allclose(solver.sigma, -p0 * np.eye(2))
+
+
+class _Brittle(MicroModel):
+    """Linear elastic, but fails on strain increments larger than ``limit``."""
+
+    def __init__(self, limit):
+        self.inner = LinearElastic(E, NU, 2)
+        self.limit = limit
+        self.stress = self.inner.stress
+
+    def trial(self, deps):
+        if np.abs(deps).max() > self.limit:
+            raise ValueError(f"increment {np.abs(deps).max():.3g} too large")
+        return self.inner.trial(deps)
+
+    def commit(self):
+        self.inner.commit()
+        self.stress = self.inner.stress
+
+    def rollback(self):
+        self.inner.rollback()
+
+
+def test_a_failing_micro_model_cuts_the_step_until_it_passes():
+    macro = Macro(structured_mesh("quad1", [1.0, 1.0], [1, 1]), "quad1")
+    farm = SerialFarm([_Brittle(3e-3) for _ in range(macro.n_gp)])
+    solver = Solver(macro, farm, _rollers(macro, 0.01))
+    solver.advance(1.0)  # eps = 1e-2 > 3e-3: cut to 1/4 (2.5e-3), then steps of that
+    assert solver.t == pytest.approx(1.0)
+    assert solver.cuts == 4  # 1 -> 1/2 -> 1/4, then each regrowth to 1/2 fails once
+    assert solver.sigma[0, 1, 1] == pytest.approx(E * -0.01 / (1 - NU**2), rel=1e-10)
+
+
+def test_step_cutting_stops_at_the_minimum_with_the_point_named():
+    macro = Macro(structured_mesh("quad1", [1.0, 1.0], [1, 1]), "quad1")
+    farm = SerialFarm([_Brittle(1e-9) for _ in range(macro.n_gp)])
+    solver = Solver(macro, farm, _rollers(macro, 0.01),
+                    settings=SolverSettings(min_step=0.1))
+    with pytest.raises(SolverError, match=r"Gauss point 0: ValueError: increment"):
+        solver.advance(1.0)
+    assert solver.t == 0.0 and np.all(solver.u == 0.0)  # nothing committed
+
+
+def test_farm_names_the_failing_point():
+    farm = SerialFarm([LinearElastic(E, NU, 2), _Brittle(0.0)])
+    with pytest.raises(MicroFailure, match="Gauss point 1") as err:
+        farm.trial(np.full((2, 2, 2), 1e-3))
+    assert err.value.point == 1
+
+
+def test_body_force_reaction_is_the_weight():
+    macro = Macro(structured_mesh("quad1", [1.0, 2.0], [2, 4]), "quad1")
+    farm = SerialFarm([LinearElastic(E, NU, 2) for _ in range(macro.n_gp)])
+    sup = _rollers(macro, 0.0)
+    sup = Supports(sup.dofs, sup.values, ("bottom",))
+    gamma = 2e4  # N/m^3, downwards
+    solver = Solver(macro, farm, Supports(np.setdiff1d(sup.dofs, macro.dofs("top", 1)),
+                                          np.zeros(np.setdiff1d(
+                                              sup.dofs, macro.dofs("top", 1)).size),
+                                          ("bottom",)),
+                    f_ramp=macro.body_force([0.0, -gamma]))
+    solver.advance(1.0)
+    # the support holds the column up: the reaction on the body is the weight, upwards
+    assert solver.reactions()["bottom"][1] == pytest.approx(gamma * 2.0, rel=1e-10)

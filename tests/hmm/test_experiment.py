@@ -1,0 +1,241 @@
+"""The standalone RVE compression test (``hmm rve``): physics, files, input errors."""
+
+import argparse
+import copy
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from dem.io.scene import SceneError, schema_markdown
+from dem.rve import RVE
+from hmm.experiment import (
+    RVE_SCHEMA,
+    cmd_rve,
+    load_config,
+    run_experiment,
+    validate_config,
+)
+
+ROOT = Path(__file__).resolve().parents[2]
+P0 = 1.0e5
+
+#: a dense 2D packing of 50 disks, compressed by 6 % in 20 increments
+SMALL = {
+    "packing": {"count": 50, "radius": [0.8e-3, 1.2e-3], "p0": P0, "seed": 5},
+    "contact": {"law": "linear", "kn": 1.0e8, "kt": 5.0e7, "mu": 0.5},
+    "test": {"axial_strain": 0.06, "increment": 3e-3},
+}
+
+GENERATED = """
+[packing]
+count = 50
+radius = [0.8e-3, 1.2e-3]
+p0 = 1e5
+[contact]
+law = "linear"
+kn = 1e8
+kt = 5e7
+mu = 0.5
+"""
+
+
+def _config(data, out):
+    cfg = validate_config(copy.deepcopy(data), "small.toml")
+    cfg["output"]["dir"] = str(out)
+    return cfg
+
+
+@pytest.fixture(scope="module")
+def biaxial(tmp_path_factory):
+    out = tmp_path_factory.mktemp("biaxial")
+    return run_experiment(_config(SMALL, out), progress=False), out
+
+
+def _write(tmp_path, text, name="rve.toml"):
+    path = tmp_path / name
+    path.write_text(text + f'\n[output]\ndir = "{(tmp_path / "out").as_posix()}"\n')
+    return path
+
+
+def _cmd(path, overwrite=False):
+    return cmd_rve(argparse.Namespace(file=path, output=None, overwrite=overwrite))
+
+
+# --------------------------------------------------------------------------- physics
+def test_lateral_stress_is_held_at_the_confining_pressure(biaxial):
+    result, _ = biaxial
+    stress, tol = result.curves["stress"], result.config["test"]["stress_tol"]
+    lateral = -stress[:, 0, 0]
+    assert np.all(np.abs(lateral - P0) <= tol * P0 * (1 + 1e-12))
+
+
+def test_axial_strain_follows_the_increments(biaxial):
+    result, _ = biaxial
+    ea = result.curves["axial_strain"]
+    np.testing.assert_allclose(ea, 3e-3 * np.arange(21), rtol=0, atol=1e-12)
+
+
+def test_stress_ratio_rises_to_a_plausible_peak(biaxial):
+    """Isotropic start, a peak after the start, 10-40 degrees for mu = 0.5 disks,
+    softening after it."""
+    s, ratio = biaxial[0].summary, biaxial[0].curves["stress_ratio"]
+    assert abs(ratio[0]) < 0.1
+    assert ratio[1] > ratio[0] + 0.1
+    assert 10.0 < s["peak_friction_angle"] < 40.0
+    assert s["peak_axial_strain"] > 0.0
+    assert s["critical_friction_angle"] < s["peak_friction_angle"]
+    assert s["peak_friction_angle"] == pytest.approx(
+        biaxial[0].curves["friction_angle"].max())
+
+
+def test_dense_packing_dilates_and_compression_is_positive(biaxial):
+    """eps_v is (V0 - V) / V0, as from the void ratio; the dense packing ends dilated
+    (eps_v < 0) with a positive dilatancy angle at the peak."""
+    c, s = biaxial[0].curves, biaxial[0].summary
+    e = c["void_ratio"]
+    np.testing.assert_allclose(c["volumetric_strain"], 1 - (1 + e) / (1 + e[0]),
+                               rtol=0, atol=1e-10)
+    assert c["volumetric_strain"][-1] < -0.005
+    assert s["dilatancy_angle"] > 0.0
+    assert s["initial_void_ratio"] == e[0]
+
+
+def test_outputs_hold_the_curves_and_the_packing(biaxial):
+    result, out = biaxial
+    with h5py.File(out / "rve_test.h5") as f:
+        for name, values in result.curves.items():
+            np.testing.assert_array_equal(f[name][()], values)
+        assert f.attrs["peak_friction_angle"] == result.summary["peak_friction_angle"]
+        assert f["stress"].attrs["unit"] == "Pa"
+    assert (out / "rve_test.png").read_bytes()[:4] == b"\x89PNG"
+    assert not list(out.glob("*.tmp"))
+    packing = RVE.load_file(out / "packing.h5")
+    assert packing.bodies.n == 50
+
+
+def test_same_seed_same_curves(biaxial, tmp_path):
+    again = run_experiment(_config(SMALL, tmp_path), progress=False)
+    for name, values in biaxial[0].curves.items():
+        np.testing.assert_array_equal(again.curves[name], values, err_msg=name)
+
+
+def test_saved_packing_restarts_the_same_test(biaxial, tmp_path):
+    """``[packing] file`` = the saved packing: same law, pressure and curves."""
+    _, out = biaxial
+    path = _write(tmp_path, f'[packing]\nfile = "{(out / "packing.h5").as_posix()}"\n'
+                            '[test]\naxial_strain = 0.06\nincrement = 3e-3')
+    result = run_experiment(load_config(path), progress=False)
+    assert result.summary["confining"] == P0
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == [
+        "rve_test.h5", "rve_test.png"]
+    for name, values in biaxial[0].curves.items():
+        np.testing.assert_array_equal(result.curves[name], values, err_msg=name)
+
+
+def test_triaxial_holds_both_lateral_stresses(tmp_path):
+    """Spheres: kn scaled to keep overlaps ~ 1e-3 r at p0, as the disks'."""
+    data = copy.deepcopy(SMALL)
+    data["packing"].update(dim=3, count=40)
+    data["contact"].update(kn=1.0e5, kt=5.0e4)
+    data["test"].update(axial_strain=4e-3, increment=2e-3)
+    result = run_experiment(_config(data, tmp_path), progress=False)
+    stress = result.curves["stress"]
+    assert stress.shape == (3, 3, 3)
+    lateral = -np.stack([stress[:, 0, 0], stress[:, 1, 1]])
+    assert np.all(np.abs(lateral - P0) <= 1e-3 * P0 * (1 + 1e-12))
+    assert np.all(np.diff(-stress[:, 2, 2]) > 0.0)   # the axial stress rises
+    assert np.all(np.diff(result.curves["stress_ratio"]) > 0.0)
+
+
+# --------------------------------------------------------------------------- CLI
+def test_cli_prints_the_summary_and_refuses_to_overwrite(biaxial, tmp_path, capsys):
+    _, out = biaxial
+    path = _write(tmp_path, f'[packing]\nfile = "{(out / "packing.h5").as_posix()}"\n'
+                            '[test]\naxial_strain = 4e-3\nincrement = 2e-3')
+    assert _cmd(path) == 0
+    shown = capsys.readouterr().out
+    assert "peak friction angle" in shown and "rve_test.h5" in shown
+    h5 = tmp_path / "out" / "rve_test.h5"
+    stamp = h5.stat().st_mtime_ns
+    assert _cmd(path) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hmm rve: error: output file") and "--overwrite" in err
+    assert err.count("\n") == 1
+    assert h5.stat().st_mtime_ns == stamp
+    assert _cmd(path, overwrite=True) == 0
+
+
+def test_cli_reports_a_failed_relaxation(biaxial, tmp_path, capsys):
+    _, out = biaxial
+    path = _write(tmp_path, f'[packing]\nfile = "{(out / "packing.h5").as_posix()}"\n'
+                            '[test]\naxial_strain = 6e-3\nincrement = 3e-3\n'
+                            'max_relax_steps = 1')
+    assert _cmd(path) == 1
+    err = capsys.readouterr().err
+    assert err.startswith("hmm rve: error: the test failed: RVE did not relax")
+    assert err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("edit, message", [
+    (("[test]", "[test]\nincrements = 1e-3"),
+     "[test] unknown key 'increments' (did you mean 'increment'?)"),
+    (("p0 = 1e5", "p0 = -1e5"), "[packing] p0 must be > 0, got -100000"),
+    (("count = 50", 'count = "fifty"'), "count must be an integer, got \"fifty\""),
+    (("[test]", "[test]\naxial_strain = 0.01\nincrement = 0.02"),
+     "[test] increment = 0.02 must not exceed axial_strain = 0.01"),
+    (("count = 50\n", ""), "[packing] missing required key 'count'"),
+    (("[packing]", '[packing]\nfile = "none.h5"'),
+     "[packing] count is not used with file"),
+    (("[packing]", "[packing]\ndim = 4"), "[packing] dim must be 2 or 3, got 4"),
+    (("law = \"linear\"", "law = \"hooke\""), "law must be \"linear\" or"),
+])
+def test_bad_files_fail_in_one_line_without_output(tmp_path, capsys, edit, message):
+    text = (GENERATED + "[test]\n").replace(*edit, 1)
+    path = _write(tmp_path, text)
+    assert _cmd(path) == 2
+    err = capsys.readouterr().err
+    assert err.startswith(f"hmm rve: error: {path}: ")
+    assert message in err and err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("text, message", [
+    ('[packing]\nfile = "missing.h5"', "missing.h5 does not exist"),
+    ('[packing]\nfile = "bad.h5"', "cannot use file"),
+    ('[packing]\nfile = "bad.h5"\n[contact]\nlaw = "linear"',
+     "[contact] is not used with [packing] file"),
+])
+def test_bad_packing_files_fail_in_one_line(tmp_path, capsys, text, message):
+    (tmp_path / "bad.h5").write_text("not hdf5")
+    assert _cmd(_write(tmp_path, text)) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("hmm rve: error: ") and message in err
+    assert err.count("\n") == 1
+    assert not (tmp_path / "out").exists()
+
+
+def test_unreadable_and_invalid_toml(tmp_path, capsys):
+    assert _cmd(tmp_path / "nothing.toml") == 2
+    assert "cannot read RVE test file" in capsys.readouterr().err
+    path = tmp_path / "broken.toml"
+    path.write_text("[packing\n")
+    assert _cmd(path) == 2
+    assert "invalid TOML" in capsys.readouterr().err
+
+
+# --------------------------------------------------------------------------- docs
+def test_example_is_valid():
+    cfg = load_config(ROOT / "examples" / "rve_biaxial.toml")
+    assert cfg["packing"]["dim"] == 2
+    assert cfg["test"]["confining"] == cfg["packing"]["p0"]
+    with pytest.raises(SceneError, match="unknown section"):
+        validate_config({**SMALL, "solver": {}})
+
+
+def test_docs_hold_the_generated_reference():
+    page = (ROOT / "docs" / "rve.md").read_text()
+    assert schema_markdown(RVE_SCHEMA).strip() in page, (
+        "docs/rve.md is out of date: paste schema_markdown(RVE_SCHEMA) into it")

@@ -1,0 +1,128 @@
+"""`hmm run` and `hmm demo`: problem files validated to one line, a multiscale run with
+DEM RVEs at the Gauss points, the files it writes."""
+
+import copy
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from dem.io.scene import SceneError
+from hmm.problem import load_problem, schema_markdown, validate_problem
+from hmm.run import DEMO, run_problem
+
+ROOT = Path(__file__).resolve().parents[2]
+
+ELASTIC = """
+[mesh]
+size = [1.0, 2.0]
+cells = [2, 2]
+
+[[dirichlet]]
+boundary = "bottom"
+component = "y"
+
+[[dirichlet]]
+boundary = "left"
+component = "x"
+
+[[dirichlet]]
+boundary = "top"
+component = "y"
+value = -0.01
+
+[micro]
+model = "linear_elastic"
+young = 1e6
+poisson = 0.3
+
+[load]
+steps = 2
+"""
+
+
+def _hmm(*args, cwd):
+    return subprocess.run([sys.executable, "-m", "hmm", *args], cwd=cwd, check=False,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_a_problem_file_runs_and_writes_its_outputs(tmp_path):
+    (tmp_path / "p.toml").write_text(ELASTIC)
+    r = _hmm("run", "p.toml", "--no-progress", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    out = tmp_path / "output" / "p"
+    for f in ("fields.h5", "fields.xdmf", "load_displacement.png",
+              "deviatoric_strain.png"):
+        assert (out / f).stat().st_size > 0
+    with h5py.File(out / "fields.h5") as f:
+        assert sorted(f["steps"]) == ["00000", "00001", "00002"]
+        sig = f["steps/00002/gauss/stress"][()]
+        force = f["curve/force/top"][()]
+    assert np.allclose(sig[:, 1, 1], 1e6 * -0.005 / (1 - 0.09), rtol=1e-10)
+    assert force[-1, 1] == pytest.approx(sig[0, 1, 1] * 1.0, rel=1e-10)
+    again = _hmm("run", "p.toml", "--no-progress", cwd=tmp_path)
+    assert again.returncode == 2 and "--overwrite" in again.stderr
+    assert len(again.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda t: t.replace("young = 1e6", "young = -1e6"), "young must be > 0"),
+    (lambda t: t.replace("[load]", "[load]\nstep = 3"), "did you mean 'steps'"),
+    (lambda t: t.replace('boundary = "left"', 'boundary = "wall"'),
+     'boundary "wall" is not a boundary of the mesh'),
+    (lambda t: t.replace('size = [1.0, 2.0]', 'size = [1.0, 2.0]\nelement = "hex1"'),
+     'element "hex1" does not fit dim = 2'),
+    (lambda t: t.replace('cells = [2, 2]', 'cells = [2.5, 2]'), "cells must be integers"),
+    (lambda t: t + "\n[output\n", "invalid TOML"),
+])
+def test_bad_problem_files_end_in_one_line(tmp_path, edit, message):
+    (tmp_path / "p.toml").write_text(edit(ELASTIC))
+    r = _hmm("run", "p.toml", cwd=tmp_path)
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("hmm run: error: p.toml")
+    assert message in lines[0]
+    assert not (tmp_path / "output").exists()
+
+
+def test_dry_run_validates_only(tmp_path):
+    (tmp_path / "p.toml").write_text(ELASTIC)
+    r = _hmm("run", "p.toml", "--dry-run", cwd=tmp_path)
+    assert r.returncode == 0 and "16 Gauss points" in r.stdout
+    assert not (tmp_path / "output").exists()
+
+
+def test_multiscale_biaxial_with_dem_rves(tmp_path):
+    """The demo problem, shrunk: 2 elements, 8 RVEs of 30 disks, 2 load steps. The
+    sample carries more axial than lateral load, the lateral stress stays near the
+    confining pressure, and every point ran the DEM."""
+    prob = copy.deepcopy(DEMO)
+    prob["mesh"]["cells"] = [1, 2]
+    prob["micro"]["count"] = 30
+    prob["load"]["steps"] = 2
+    prob["dirichlet"][2]["value"] = -0.0004
+    summary = run_problem(validate_problem(prob), tmp_path / "out", progress=False)
+    assert summary["load_factor"] == pytest.approx(1.0)
+    assert summary["dem_points"] == summary["gauss_points"] == 8
+    with h5py.File(tmp_path / "out" / "fields.h5") as f:
+        sig = f["steps/00002/gauss/stress"][()]
+    width = DEMO["mesh"]["size"][0]
+    top = summary["reactions"]["top"][1]
+    assert -top / width > 1.05e5  # axial stress above the confinement
+    assert np.mean(sig[:, 0, 0]) == pytest.approx(-1e5, rel=0.1)
+
+
+def test_demo_problem_is_valid_and_documented():
+    p = validate_problem(DEMO, "<demo>")
+    assert p["micro"]["model"] == "dem"
+    doc = (ROOT / "docs" / "multiscale.md").read_text()
+    assert schema_markdown() in doc  # the reference is generated, never edited
+    with pytest.raises(SceneError, match="needs supports"):
+        validate_problem({**DEMO, "dirichlet": []})
+
+
+def test_example_problem_file_is_valid():
+    load_problem(ROOT / "examples" / "biaxial.toml")

@@ -48,15 +48,19 @@ scale):
 
 Contact point of a vertex on a face
 -----------------------------------
-When the deeper optimum is a vertex, the point lies ``ov / 2`` in front of the
-depth-weighted mean of the searched body's vertices behind the contact face (the face
-whose normal is the contact normal), moved along the normal to the deepest vertex's
-level. A vertex weighs its depth behind the face's plane less how far it lies outside
-the other body, so it enters with weight 0 from whichever side it comes in. One vertex
-through: that vertex, the contract's point. Several (a face or an edge lying nearly
-flat): the point, and so the torque, moves continuously as the face tilts, where jumping
-between tied corners would make a box resting on another chatter; the force is then a
+When the deeper optimum is a vertex, the point lies ``ov / 2`` in front of the mean of
+the searched body's vertices that lie inside the other, each weighted by its depth
+there (``-phi``, free from the programme's first scan), moved along the normal to the
+deepest vertex's level. One vertex inside: that vertex, the contract's point. Several (a
+face or an edge lying nearly flat on a face): the point, and so the torque, moves
+continuously as the face tilts (a weight vanishes as its vertex comes in through any
+face), where jumping between tied corners, or to the other end when a tilt flips which
+is deepest, would make a box resting on another chatter; the force is then a
 distributed support, not the gradient of a potential (as in :func:`polytope_plane`).
+Only the deeper side's vertices count: weighing the other body's corners as well
+(inside it at the same time, as when two corners have passed each other) would move the
+point off the deepest vertex for most of such a contact, and an undamped collision of
+two pentagons then loses a tenth of its energy.
 
 Edge across edge (3D)
 ---------------------
@@ -78,7 +82,8 @@ points; when a face wins it is a vertex on a face, with the point above. Candida
   rows, on a crease of the other, two rows; P1's and P2's), then the edge pairs at the
   ends of either edge whose arcs of face normals cross (the Minkowski difference's
   facets next to the current one), walking on while the overlap drops (``_MAX_WALK``
-  steps at most).
+  steps at most). An end is skipped when the facet's side there lies so far from the
+  foot of the origin that no facet across it can be nearer.
 
 This is the limit of P1/P2 where the SDF gradient is undefined: where the deeper
 optimum is a vertex with one face attaining the max, that face's normal is an axis
@@ -171,10 +176,11 @@ def _row2(k, nfo, fo0, fi0, faces, sco, sci, c, s, px, py):
 def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol):
     """Minimise the outer polygon's face function over the inner polygon (outer frame).
 
-    Returns ``(t, x, y, nx, ny, count, pivots)``: the optimum, its point (the average of
-    the optimal inner vertices when several are), the normalised sum of the outer
-    normals attaining the max there, and how many inner vertices are optimal (0: the
-    optimum is not a vertex).
+    Returns ``(t, x, y, nx, ny, count, pivots, sw, swx, swy)``: the optimum, its point
+    (the average of the optimal inner vertices when several are), the normalised sum of
+    the outer normals attaining the max there, how many inner vertices are optimal (0:
+    the optimum is not a vertex), and the sums of ``w`` and ``w x`` over the inner
+    vertices inside, ``w`` a vertex's depth (for the contact point).
     """
     fo0, nfo = fstart[so], fstart[so + 1] - fstart[so]
     fi0, nfi = fstart[si], fstart[si + 1] - fstart[si]
@@ -183,6 +189,7 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
     # the two least values over all vertices (for the ties below)
     fmin, vb, fb = math.inf, 0, 0
     lo1, lo2 = math.inf, math.inf
+    sw, swx, swy = 0.0, 0.0, 0.0  # the inner vertices inside, weighted by their depth
     for v in range(nvi):
         lx, ly = sci * verts[vi0 + v, 0], sci * verts[vi0 + v, 1]
         wx, wy = c * lx - s * ly + px, s * lx + c * ly + py
@@ -191,6 +198,10 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
             val = faces[fo0 + k, 0] * wx + faces[fo0 + k, 1] * wy - sco * faces[fo0 + k, 3]
             if val > fv:
                 fv, fa = val, k
+        if fv < 0.0:
+            sw -= fv
+            swx -= fv * wx
+            swy -= fv * wy
         if fv < lo2:
             lo1, lo2 = min(fv, lo1), max(fv, lo1)
         e = v - 1 if v > 0 else nfi - 1  # the edges into and out of vertex v
@@ -310,44 +321,7 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
             if val > best:
                 best, nx, ny = val, faces[f, 0], faces[f, 1]
         norm = 1.0
-    return zt, zx, zy, nx / norm, ny / norm, count, it
-
-
-@kernel
-def _contact_point2(so, sco, si, sci, c, s, px, py, zx, zy, mx, my, ov, vstart, verts,
-                    fstart, faces):
-    """Where the force of a contact along a face acts (outer frame).
-
-    ``z`` is the inner body's deepest point, at depth ``ov`` behind the contact face,
-    ``m`` that face's outward unit normal. Each inner vertex behind the face's plane
-    weighs its depth there, less how far it lies outside the outer body (so that a
-    vertex enters the mean with weight 0 whichever way it comes in). Returns the
-    weighted mean moved along ``m`` to the level of ``z``: ``z`` itself when no other
-    vertex weighs.
-    """
-    sw, sx, sy = 0.0, 0.0, 0.0
-    top = mx * zx + my * zy + ov  # the face's plane: m . x = top
-    for v in range(vstart[si], vstart[si + 1]):
-        lx, ly = sci * verts[v, 0], sci * verts[v, 1]
-        wx, wy = c * lx - s * ly + px, s * lx + c * ly + py
-        d = top - (mx * wx + my * wy)
-        if d <= 0.0:
-            continue
-        phi = 0.0  # how far outside the outer body (0 inside)
-        for f in range(fstart[so], fstart[so + 1]):
-            phi = max(phi, faces[f, 0] * wx + faces[f, 1] * wy - sco * faces[f, 3])
-            if phi >= d:
-                break
-        d -= phi
-        if d > 0.0:
-            sw += d
-            sx += d * wx
-            sy += d * wy
-    if sw == 0.0:
-        return zx, zy
-    ax, ay = sx / sw - zx, sy / sw - zy
-    h = ax * mx + ay * my
-    return zx + ax - h * mx, zy + ay - h * my
+    return zt, zx, zy, nx / norm, ny / norm, count, it, sw, swx, swy
 
 
 @kernel
@@ -366,30 +340,36 @@ def _polytope2(sa, a, sb, b, sx, sy, pos, rot, geo):
               _separation2(sa, sca, sb, scb, c, -s, qx, qy, vstart, verts, fstart, faces))
     if sep > 0.0:
         return -sep, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0
-    t1, x1, y1, m1x, m1y, n1, i1 = _deepest2(sb, scb, sa, sca, c, s, px, py, vstart, verts,
-                                              fstart, faces, tol)
+    t1, x1, y1, m1x, m1y, n1, i1, s1, s1x, s1y = _deepest2(
+        sb, scb, sa, sca, c, s, px, py, vstart, verts, fstart, faces, tol)
     if t1 >= 0.0:
         return -t1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, i1
-    t2, x2, y2, m2x, m2y, n2, i2 = _deepest2(sa, sca, sb, scb, c, -s, qx, qy, vstart, verts,
-                                              fstart, faces, tol)
+    t2, x2, y2, m2x, m2y, n2, i2, s2, s2x, s2y = _deepest2(
+        sa, sca, sb, scb, c, -s, qx, qy, vstart, verts, fstart, faces, tol)
     d1, d2 = -t1, -t2
-    if d1 > d2 + tol or (d1 >= d2 - tol and n1 >= n2):
-        if n1 > 0:
-            x1, y1 = _contact_point2(sb, scb, sa, sca, c, s, px, py, x1, y1, m1x, m1y, d1,
-                                     vstart, verts, fstart, faces)
+    use1 = d1 > d2 + tol or (d1 >= d2 - tol and n1 >= n2)
+    if use1:
+        ov, cnt, h = d1, n1, -0.5 * d1
         nx, ny = -(cb * m1x - snb * m1y), -(snb * m1x + cb * m1y)  # -(B's normal)
         wx = cb * x1 - snb * y1 + pos[b, 0] + sx
         wy = snb * x1 + cb * y1 + pos[b, 1] + sy
-        h = -0.5 * d1
-        return d1, nx, ny, 0.0, wx + h * nx, wy + h * ny, 0.0, i1 + i2
-    if n2 > 0:
-        x2, y2 = _contact_point2(sa, sca, sb, scb, c, -s, qx, qy, x2, y2, m2x, m2y, d2,
-                                 vstart, verts, fstart, faces)
-    nx, ny = ca * m2x - sna * m2y, sna * m2x + ca * m2y  # A's normal
-    wx = ca * x2 - sna * y2 + pos[a, 0]
-    wy = sna * x2 + ca * y2 + pos[a, 1]
-    h = 0.5 * d2
-    return d2, nx, ny, 0.0, wx + h * nx, wy + h * ny, 0.0, i1 + i2
+    else:
+        ov, cnt, h = d2, n2, 0.5 * d2
+        nx, ny = ca * m2x - sna * m2y, sna * m2x + ca * m2y  # A's normal
+        wx = ca * x2 - sna * y2 + pos[a, 0]
+        wy = sna * x2 + ca * y2 + pos[a, 1]
+    # a vertex on a face: the point moves to the depth-weighted mean of the searched
+    # body's vertices inside the other, at the deepest point's level along n
+    if cnt > 0:
+        if use1:
+            ex = (cb * s1x - snb * s1y) / s1 + pos[b, 0] + sx - wx
+            ey = (snb * s1x + cb * s1y) / s1 + pos[b, 1] + sy - wy
+        else:
+            ex = (ca * s2x - sna * s2y) / s2 + pos[a, 0] - wx
+            ey = (sna * s2x + ca * s2y) / s2 + pos[a, 1] - wy
+        e = ex * nx + ey * ny
+        wx, wy = wx + ex - e * nx, wy + ey - e * ny
+    return ov, nx, ny, 0.0, wx + h * nx, wy + h * ny, 0.0, i1 + i2
 
 
 # --------------------------------------------------------------------------- 3D
@@ -472,15 +452,16 @@ def _deepest3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22, px,
               vstart, verts, fstart, faces, brad, tol):
     """Minimise the outer polyhedron's face function over the inner one (outer frame).
 
-    Returns ``(t, x, y, z, nx, ny, nz, count, pivots, k0, k1, k2, k3)`` as
-    :func:`_deepest2`, and the rows of the final basis (outer faces ``0 .. nfo - 1``,
-    then inner faces).
+    Returns ``(t, x, y, z, nx, ny, nz, count, pivots, k0, k1, k2, k3, sw, swx, swy,
+    swz)`` as :func:`_deepest2`, with the rows of the final basis (outer faces ``0 ..
+    nfo - 1``, then inner faces).
     """
     fo0, nfo = fstart[so], fstart[so + 1] - fstart[so]
     fi0, nfi = fstart[si], fstart[si + 1] - fstart[si]
     vi0, nvi = vstart[si], vstart[si + 1] - vstart[si]
     # start: the inner vertex where the outer face function is least
     fmin, lo2, vb = math.inf, math.inf, vi0  # the two least values, the first's vertex
+    sw, swx, swy, swz = 0.0, 0.0, 0.0, 0.0  # the inner vertices inside, weighted by depth
     for v in range(vi0, vi0 + nvi):
         lx, ly, lz = sci * verts[v, 0], sci * verts[v, 1], sci * verts[v, 2]
         wx = r00 * lx + r01 * ly + r02 * lz + px
@@ -490,6 +471,11 @@ def _deepest3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22, px,
         for f in range(fo0, fo0 + nfo):
             fv = max(fv, faces[f, 0] * wx + faces[f, 1] * wy + faces[f, 2] * wz
                      - sco * faces[f, 3])
+        if fv < 0.0:
+            sw -= fv
+            swx -= fv * wx
+            swy -= fv * wy
+            swz -= fv * wz
         if fv < fmin:
             fmin, lo2, vb = fv, fmin, v
         elif fv < lo2:
@@ -659,41 +645,7 @@ def _deepest3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22, px,
                 best, nx, ny, nz = val, faces[f, 0], faces[f, 1], faces[f, 2]
         norm = 1.0
     return (zt, zx, zy, zz, nx / norm, ny / norm, nz / norm, count, it,
-            k0, k1, k2, k3)
-
-
-@kernel
-def _contact_point3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                    px, py, pz, zx, zy, zz, mx, my, mz, ov, vstart, verts, fstart, faces):
-    """Where the force of a contact along a face acts (outer frame): as
-    :func:`_contact_point2`, the inner body placed at ``R x + p``."""
-    sw, sx, sy, sz = 0.0, 0.0, 0.0, 0.0
-    top = mx * zx + my * zy + mz * zz + ov  # the face's plane: m . x = top
-    for v in range(vstart[si], vstart[si + 1]):
-        lx, ly, lz = sci * verts[v, 0], sci * verts[v, 1], sci * verts[v, 2]
-        wx = r00 * lx + r01 * ly + r02 * lz + px
-        wy = r10 * lx + r11 * ly + r12 * lz + py
-        wz = r20 * lx + r21 * ly + r22 * lz + pz
-        d = top - (mx * wx + my * wy + mz * wz)
-        if d <= 0.0:
-            continue
-        phi = 0.0  # how far outside the outer body (0 inside)
-        for f in range(fstart[so], fstart[so + 1]):
-            phi = max(phi, faces[f, 0] * wx + faces[f, 1] * wy + faces[f, 2] * wz
-                      - sco * faces[f, 3])
-            if phi >= d:
-                break
-        d -= phi
-        if d > 0.0:
-            sw += d
-            sx += d * wx
-            sy += d * wy
-            sz += d * wz
-    if sw == 0.0:
-        return zx, zy, zz
-    ax, ay, az = sx / sw - zx, sy / sw - zy, sz / sw - zz
-    h = ax * mx + ay * my + az * mz
-    return zx + ax - h * mx, zy + ay - h * my, zz + az - h * mz
+            k0, k1, k2, k3, sw, swx, swy, swz)
 
 
 @kernel(inline=True)
@@ -829,112 +781,148 @@ def _edge_axis3(sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22,
 
 
 @kernel
-def _edge_ends3(s, sc, g1, g2, fstart, faces):
-    """The edge of body ``s`` (own frame) where faces ``g1``, ``g2`` meet: a point on
-    its line, the unit direction and the parameters of its two ends (``lo > hi``: the
-    line misses the body, the faces do not meet in an edge)."""
+def _edge_ends3(s, sc, g1, g2, fstart, faces, eps):
+    """The edge of body ``s`` (own frame) where faces ``g1``, ``g2`` meet.
+
+    Returns a point on its line, the unit direction, the parameters ``lo``, ``hi`` of
+    its two ends (``lo > hi``: the line misses the body, the faces do not meet in an
+    edge), and for either end a bit mask of the faces through it (bit ``k``: face
+    ``fstart[s] + k``, for the first 62 faces).
+    """
+    f0 = fstart[s]
     xx, xy, xz, ex, ey, ez = _plane_line(faces[g1, 0], faces[g1, 1], faces[g1, 2],
                                          sc * faces[g1, 3], faces[g2, 0], faces[g2, 1],
                                          faces[g2, 2], sc * faces[g2, 3])
     norm = math.sqrt(ex * ex + ey * ey + ez * ez)
     if norm == 0.0:
-        return xx, xy, xz, 0.0, 0.0, 0.0, 1.0, -1.0
+        return xx, xy, xz, 0.0, 0.0, 0.0, 1.0, -1.0, 0, 0
     ex, ey, ez = ex / norm, ey / norm, ez / norm
-    lo, hi = -math.inf, math.inf
-    for h in range(fstart[s], fstart[s + 1]):
+    lo, hi, mlo, mhi = -math.inf, math.inf, 0, 0
+    for h in range(f0, fstart[s + 1]):
         if h == g1 or h == g2:
             continue
         den = faces[h, 0] * ex + faces[h, 1] * ey + faces[h, 2] * ez
         num = sc * faces[h, 3] - (faces[h, 0] * xx + faces[h, 1] * xy + faces[h, 2] * xz)
+        bit = 1 << (h - f0) if h - f0 < 62 else 0
         if den > 1e-12:
-            hi = min(hi, num / den)
+            t = num / den
+            if t < hi - eps:
+                hi, mhi = t, bit
+            elif t <= hi + eps:
+                hi, mhi = min(hi, t), mhi | bit
         elif den < -1e-12:
-            lo = max(lo, num / den)
+            t = num / den
+            if t > lo + eps:
+                lo, mlo = t, bit
+            elif t >= lo - eps:
+                lo, mlo = max(lo, t), mlo | bit
         elif num < 0.0:
-            return xx, xy, xz, ex, ey, ez, 1.0, -1.0
-    return xx, xy, xz, ex, ey, ez, lo, hi
+            return xx, xy, xz, ex, ey, ez, 1.0, -1.0, 0, 0
+    both = 0
+    if g1 - f0 < 62:
+        both |= 1 << (g1 - f0)
+    if g2 - f0 < 62:
+        both |= 1 << (g2 - f0)
+    return xx, xy, xz, ex, ey, ez, lo, hi, mlo | both, mhi | both
+
+
+@kernel(inline=True)
+def _pair_overlap(faces, i, j, is_a, vx, vy, vz, o1x, o1y, o1z, o2x, o2y, o2z,
+                  xox, xoy, xoz):
+    """Overlap along the axis of an edge at ``v`` between faces ``i``, ``j`` and the
+    other body's edge (normals ``o1``, ``o2``, through ``xo``), one frame; infinite
+    unless their arcs of normals cross. Also the axis and the two edge directions."""
+    if is_a:
+        a1x, a1y, a1z = faces[i, 0], faces[i, 1], faces[i, 2]
+        a2x, a2y, a2z = faces[j, 0], faces[j, 1], faces[j, 2]
+        b1x, b1y, b1z, b2x, b2y, b2z = o1x, o1y, o1z, o2x, o2y, o2z
+    else:
+        a1x, a1y, a1z, a2x, a2y, a2z = o1x, o1y, o1z, o2x, o2y, o2z
+        b1x, b1y, b1z = faces[i, 0], faces[i, 1], faces[i, 2]
+        b2x, b2y, b2z = faces[j, 0], faces[j, 1], faces[j, 2]
+    # do the arcs a1-a2 and (-b1)-(-b2) of the unit sphere cross?
+    ux, uy, uz = a2y * a1z - a2z * a1y, a2z * a1x - a2x * a1z, a2x * a1y - a2y * a1x
+    qx, qy, qz = b2y * b1z - b2z * b1y, b2z * b1x - b2x * b1z, b2x * b1y - b2y * b1x
+    cba = -(b1x * ux + b1y * uy + b1z * uz)
+    dba = -(b2x * ux + b2y * uy + b2z * uz)
+    adc = a1x * qx + a1y * qy + a1z * qz
+    bdc = a2x * qx + a2y * qy + a2z * qz
+    if not (cba * dba < 0.0 and adc * bdc < 0.0 and cba * bdc > 0.0):
+        return math.inf, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    nx, ny, nz, eax, eay, eaz, ebx, eby, ebz = _edge_normal(
+        a1x, a1y, a1z, a2x, a2y, a2z, b1x, b1y, b1z, b2x, b2y, b2z)
+    if nx == 0.0 and ny == 0.0 and nz == 0.0:
+        return math.inf, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    ov = nx * (vx - xox) + ny * (vy - xoy) + nz * (vz - xoz)
+    return ov if is_a else -ov, nx, ny, nz, eax, eay, eaz, ebx, eby, ebz
 
 
 @kernel
-def _vertex_edges3(s, sc, vx, vy, vz, is_a, skip1, skip2, r00, r01, r02, r10, r11, r12,
-                   r20, r21, r22, px, py, pz, fstart, faces, eps,
+def _vertex_edges3(s, sc, vx, vy, vz, mask, is_a, skip1, skip2, r00, r01, r02, r10, r11,
+                   r12, r20, r21, r22, px, py, pz, fstart, faces, eps,
                    o1x, o1y, o1z, o2x, o2y, o2z, xox, xoy, xoz, eox, eoy, eoz):
     """The least edge-edge overlap between the edges at vertex ``v`` of body ``s`` and
-    one edge of the other body (B's frame).
+    one edge of the other body.
 
-    ``v`` is in the body's own frame, placed in B's at ``R x + p``; ``is_a`` tells
-    whether ``s`` is A. The other edge has face normals ``o1``, ``o2`` and line
-    ``xo + t eo`` (B's frame). Every pair of faces through ``v`` but ``(skip1, skip2)``
-    is tried (a pair that is no edge lies inside the vertex's normal cone, where ``v``
-    is still the extreme point: its overlap is an upper bound too); a pair counts when
-    its arc of normals crosses the other edge's (negated for B), i.e. when the two
-    edges are the extreme features along their cross product. Returns ``(overlap, nx,
-    ny, nz, cx, cy, cz, i, j)`` in B's frame with ``i, j`` the pair's faces, overlap
-    infinite if no pair counts.
+    Everything is in the body's own frame, placed in B's at ``R x + p``; ``is_a`` tells
+    whether ``s`` is A, ``mask`` which faces pass through ``v`` (as
+    :func:`_edge_ends3`; with more than 62 faces they are tested). The other edge has
+    face normals ``o1``, ``o2`` and line ``xo + t eo``. Every pair of faces through
+    ``v`` but ``(skip1, skip2)`` is tried (a pair that is no edge lies inside the
+    vertex's normal cone, where ``v`` is still the extreme point: its overlap is an
+    upper bound too); a pair counts when its arc of normals crosses the other edge's
+    (negated for B), i.e. when the two edges are the extreme features along their cross
+    product. Returns ``(overlap, nx, ny, nz, cx, cy, cz, i, j)`` in B's frame with
+    ``i, j`` the pair's faces, overlap infinite if no pair counts.
     """
-    best, bnx, bny, bnz, bcx, bcy, bcz = math.inf, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    bi, bj = -1, -1
-    wx = r00 * vx + r01 * vy + r02 * vz + px  # v in B's frame
-    wy = r10 * vx + r11 * vy + r12 * vz + py
-    wz = r20 * vx + r21 * vy + r22 * vz + pz
+    best, bi, bj = math.inf, -1, -1
+    bnx, bny, bnz = 0.0, 0.0, 0.0
+    eax, eay, eaz, ebx, eby, ebz = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    # the other edge's great circle: a pair crosses its arc only if its two normals
+    # (negated for B) lie on either side
+    qx, qy, qz = o1y * o2z - o1z * o2y, o1z * o2x - o1x * o2z, o1x * o2y - o1y * o2x
     f0, f1 = fstart[s], fstart[s + 1]
-    through = 0  # bit k: face f0 + k passes through v (the first 62 faces)
-    for i in range(f0, min(f1, f0 + 62)):
-        if abs(faces[i, 0] * vx + faces[i, 1] * vy + faces[i, 2] * vz
-               - sc * faces[i, 3]) <= eps:
-            through |= 1 << (i - f0)
+    small = f1 - f0 <= 62
     for i in range(f0, f1):
-        if i - f0 < 62:
-            if not (through >> (i - f0)) & 1:
+        if small:
+            if not (mask >> (i - f0)) & 1:
                 continue
         elif abs(faces[i, 0] * vx + faces[i, 1] * vy + faces[i, 2] * vz
                  - sc * faces[i, 3]) > eps:
             continue
-        ix, iy, iz, _ = _face_row3(i, 1.0, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                                   0.0, 0.0, 0.0, faces)
+        side = faces[i, 0] * qx + faces[i, 1] * qy + faces[i, 2] * qz
+        later = mask >> (i + 1 - f0) if small else 0
         for j in range(i + 1, f1):
-            if (i == skip1 and j == skip2) or (i == skip2 and j == skip1):
-                continue
-            if j - f0 < 62:
-                if not (through >> (j - f0)) & 1:
+            if small:
+                if later == 0:
+                    break
+                hit = later & 1
+                later >>= 1
+                if not hit:
                     continue
             elif abs(faces[j, 0] * vx + faces[j, 1] * vy + faces[j, 2] * vz
                      - sc * faces[j, 3]) > eps:
                 continue
-            jx, jy, jz, _ = _face_row3(j, 1.0, r00, r01, r02, r10, r11, r12, r20, r21,
-                                       r22, 0.0, 0.0, 0.0, faces)
-            if is_a:
-                a1x, a1y, a1z, a2x, a2y, a2z = ix, iy, iz, jx, jy, jz
-                b1x, b1y, b1z, b2x, b2y, b2z = o1x, o1y, o1z, o2x, o2y, o2z
-            else:
-                a1x, a1y, a1z, a2x, a2y, a2z = o1x, o1y, o1z, o2x, o2y, o2z
-                b1x, b1y, b1z, b2x, b2y, b2z = ix, iy, iz, jx, jy, jz
-            # do the arcs a1-a2 and (-b1)-(-b2) of the unit sphere cross?
-            ux, uy, uz = a2y * a1z - a2z * a1y, a2z * a1x - a2x * a1z, a2x * a1y - a2y * a1x
-            qx, qy, qz = b2y * b1z - b2z * b1y, b2z * b1x - b2x * b1z, b2x * b1y - b2y * b1x
-            cba = -(b1x * ux + b1y * uy + b1z * uz)
-            dba = -(b2x * ux + b2y * uy + b2z * uz)
-            adc = a1x * qx + a1y * qy + a1z * qz
-            bdc = a2x * qx + a2y * qy + a2z * qz
-            if not (cba * dba < 0.0 and adc * bdc < 0.0 and cba * bdc > 0.0):
+            if (i == skip1 and j == skip2) or (i == skip2 and j == skip1):
                 continue
-            nx, ny, nz, eax, eay, eaz, ebx, eby, ebz = _edge_normal(
-                a1x, a1y, a1z, a2x, a2y, a2z, b1x, b1y, b1z, b2x, b2y, b2z)
-            if nx == 0.0 and ny == 0.0 and nz == 0.0:
+            if side * (faces[j, 0] * qx + faces[j, 1] * qy + faces[j, 2] * qz) >= 0.0:
                 continue
-            dx, dy, dz = wx - xox, wy - xoy, wz - xoz  # from the other line to v
-            ov = nx * dx + ny * dy + nz * dz
-            if not is_a:
-                ov = -ov
+            ov, nx, ny, nz, ax, ay, az, bx, by, bz = _pair_overlap(
+                faces, i, j, is_a, vx, vy, vz, o1x, o1y, o1z, o2x, o2y, o2z, xox, xoy,
+                xoz)
             if ov < best:
-                best, bnx, bny, bnz, bi, bj = ov, nx, ny, nz, i, j
-                if is_a:
-                    bcx, bcy, bcz = _line_pair(wx, wy, wz, eax, eay, eaz,
-                                               xox, xoy, xoz, eox, eoy, eoz)
-                else:
-                    bcx, bcy, bcz = _line_pair(xox, xoy, xoz, eox, eoy, eoz,
-                                               wx, wy, wz, ebx, eby, ebz)
-    return best, bnx, bny, bnz, bcx, bcy, bcz, bi, bj
+                best, bi, bj, bnx, bny, bnz = ov, i, j, nx, ny, nz
+                eax, eay, eaz, ebx, eby, ebz = ax, ay, az, bx, by, bz
+    if bi < 0:
+        return math.inf, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -1, -1
+    if is_a:
+        cx, cy, cz = _line_pair(vx, vy, vz, eax, eay, eaz, xox, xoy, xoz, eox, eoy, eoz)
+    else:
+        cx, cy, cz = _line_pair(xox, xoy, xoz, eox, eoy, eoz, vx, vy, vz, ebx, eby, ebz)
+    return (best, r00 * bnx + r01 * bny + r02 * bnz, r10 * bnx + r11 * bny + r12 * bnz,
+            r20 * bnx + r21 * bny + r22 * bnz, r00 * cx + r01 * cy + r02 * cz + px,
+            r10 * cx + r11 * cy + r12 * cz + py, r20 * cx + r21 * cy + r22 * cz + pz,
+            bi, bj)
 
 
 @kernel(inline=True)
@@ -964,10 +952,10 @@ def _edge_contact3(sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22
                    ga1, ga2, fb1, fb2, ga3, ga4, fb3, fb4):
     """Contact by the separating-axis test where the deeper optimum is not a vertex.
 
-    Candidate axes: every face normal of both bodies and the edge-edge axes of the
+    Candidate axes: every face normal of both bodies, the edge-edge axes of the
     creases the two programmes ended on (A's faces ``ga1, ga2`` with B's ``fb1, fb2``
-    from P1, ``ga3, ga4`` with ``fb3, fb4`` from P2; ``-1``: none). The least overlap
-    wins. Returns ``(kind, ov, nx, ny, nz, cx, cy, cz)``: kind 0, a face of B (its
+    from P1, ``ga3, ga4`` with ``fb3, fb4`` from P2; ``-1``: none) and those of the edge
+    pairs met walking from them (the module docstring). The least overlap wins. Returns ``(kind, ov, nx, ny, nz, cx, cy, cz)``: kind 0, a face of B (its
     outward normal and A's deepest vertex, in B's frame); 1, a face of A (its outward
     normal and B's deepest vertex, in A's frame); 2, an edge on an edge (the normal
     from A to B and the contact point, in B's frame).
@@ -1000,32 +988,78 @@ def _edge_contact3(sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22
                                                        b2x, b2y, b2z, scb * faces[fb, 3])
             # the two edges in their own frames; a line that misses its body (two faces
             # that do not meet) is no edge, and the other side cannot be paired with it
-            tax, tay, taz, uax, uay, uaz, loa, hia = _edge_ends3(sa, sca, ga, gb, fstart,
-                                                                 faces)
-            tbx, tby, tbz, ubx, uby, ubz, lob, hib = _edge_ends3(sb, scb, fa, fb, fstart,
-                                                                 faces)
-            real_a, real_b = loa <= hia + eps_a, lob <= hib + eps_b
+            (tax, tay, taz, uax, uay, uaz, loa, hia, mloa,
+             mhia) = _edge_ends3(sa, sca, ga, gb, fstart, faces, eps_a)
+            (tbx, tby, tbz, ubx, uby, ubz, lob, hib, mlob,
+             mhib) = _edge_ends3(sb, scb, fa, fb, fstart, faces, eps_b)
             step, side_to, ng, nh = cur, -1, -1, -1
-            for side in range(2):
-                if not (real_a and real_b):
-                    break
-                for end in range(2):
-                    if side == 0:
-                        t = loa if end == 0 else hia
+            # Across the side of the pair's facet (of the Minkowski difference) at an
+            # end v of one edge, the next facet is tilted by at most the other edge's
+            # dihedral angle theta; at a distance w from the foot of the origin it is
+            # no nearer than this one when w >= cur tan(theta / 2): skip that end.
+            wx, wy, wz = xax - xbx, xay - xby, xaz - xbz
+            aa = eax * eax + eay * eay + eaz * eaz
+            bb = ebx * ebx + eby * eby + ebz * ebz
+            ab = eax * ebx + eay * eby + eaz * ebz
+            den = aa * bb - ab * ab
+            reach_a, reach_b = math.inf, math.inf  # w below which an end is checked
+            tpa, tpb, sin_ab = 0.0, 0.0, 0.0
+            if den > 1e-12 * aa * bb:
+                d = eax * wx + eay * wy + eaz * wz
+                e = ebx * wx + eby * wy + ebz * wz
+                s = (ab * e - bb * d) / den  # the closest points' parameters
+                t = (aa * e - ab * d) / den
+                dx = xax + s * eax - px
+                dy = xay + s * eay - py
+                dz = xaz + s * eaz - pz
+                tpa = ((r00 * dx + r10 * dy + r20 * dz - tax) * uax
+                       + (r01 * dx + r11 * dy + r21 * dz - tay) * uay
+                       + (r02 * dx + r12 * dy + r22 * dz - taz) * uaz)
+                tpb = ((xbx + t * ebx - tbx) * ubx + (xby + t * eby - tby) * uby
+                       + (xbz + t * ebz - tbz) * ubz)
+                sin_ab = math.sqrt(den / (aa * bb))
+                ca = min(max(a1x * a2x + a1y * a2y + a1z * a2z, -1.0), 1.0)
+                cb = min(max(b1x * b2x + b1y * b2y + b1z * b2z, -1.0), 1.0)
+                if ca > -1.0:
+                    reach_b = cur * math.sqrt((1.0 - ca) / (1.0 + ca))
+                if cb > -1.0:
+                    reach_a = cur * math.sqrt((1.0 - cb) / (1.0 + cb))
+            if loa <= hia + eps_a and lob <= hib + eps_b:
+                # B's edge in A's frame (R^T), to cross with the edges at A's ends
+                o1x = r00 * b1x + r10 * b1y + r20 * b1z
+                o1y = r01 * b1x + r11 * b1y + r21 * b1z
+                o1z = r02 * b1x + r12 * b1y + r22 * b1z
+                o2x = r00 * b2x + r10 * b2y + r20 * b2z
+                o2y = r01 * b2x + r11 * b2y + r21 * b2z
+                o2z = r02 * b2x + r12 * b2y + r22 * b2z
+                dx, dy, dz = xbx - px, xby - py, xbz - pz
+                xox = r00 * dx + r10 * dy + r20 * dz
+                xoy = r01 * dx + r11 * dy + r21 * dz
+                xoz = r02 * dx + r12 * dy + r22 * dz
+                eox = r00 * ebx + r10 * eby + r20 * ebz
+                eoy = r01 * ebx + r11 * eby + r21 * ebz
+                eoz = r02 * ebx + r12 * eby + r22 * ebz
+                for k in range(4):
+                    if k < 2:  # the edges at A's ends against B's edge
+                        t, m = (loa, mloa) if k == 0 else (hia, mhia)
+                        if (tpa - t if k == 0 else t - tpa) * sin_ab >= reach_a:
+                            continue
                         ov3, mx, my, mz, ex, ey, ez, g, h = _vertex_edges3(
-                            sa, sca, tax + t * uax, tay + t * uay, taz + t * uaz, True,
+                            sa, sca, tax + t * uax, tay + t * uay, taz + t * uaz, m, True,
                             ga, gb, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                            px, py, pz, fstart, faces, eps_a, b1x, b1y, b1z, b2x, b2y,
-                            b2z, xbx, xby, xbz, ebx, eby, ebz)
-                    else:
-                        t = lob if end == 0 else hib
+                            px, py, pz, fstart, faces, eps_a, o1x, o1y, o1z, o2x, o2y,
+                            o2z, xox, xoy, xoz, eox, eoy, eoz)
+                    else:  # the edges at B's ends against A's edge
+                        t, m = (lob, mlob) if k == 2 else (hib, mhib)
+                        if (tpb - t if k == 2 else t - tpb) * sin_ab >= reach_b:
+                            continue
                         ov3, mx, my, mz, ex, ey, ez, g, h = _vertex_edges3(
-                            sb, scb, tbx + t * ubx, tby + t * uby, tbz + t * ubz, False,
-                            fa, fb, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0,
+                            sb, scb, tbx + t * ubx, tby + t * uby, tbz + t * ubz, m,
+                            False, fa, fb, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0,
                             0.0, 0.0, 0.0, fstart, faces, eps_b, a1x, a1y, a1z, a2x,
                             a2y, a2z, xax, xay, xaz, eax, eay, eaz)
                     if ov3 < step:
-                        step, side_to, ng, nh = ov3, side, g, h
+                        step, side_to, ng, nh = ov3, k // 2, g, h
                     if ov3 < ov:
                         kind, ov, nx, ny, nz, cx, cy, cz = 2, ov3, mx, my, mz, ex, ey, ez
             if side_to < 0:
@@ -1090,12 +1124,14 @@ def _polytope3(sa, a, sb, b, sx, sy, sz, pos, rot, geo):
                            qx, qy, qz, vstart, verts, fstart, faces))
     if sep > 0.0:
         return -sep, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0
-    t1, x1, y1, z1, m1x, m1y, m1z, n1, i1, k10, k11, k12, k13 = _deepest3(
+    (t1, x1, y1, z1, m1x, m1y, m1z, n1, i1, k10, k11, k12, k13, s1, s1x, s1y,
+     s1z) = _deepest3(
         sb, scb, sa, sca, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz,
         vstart, verts, fstart, faces, brad, tol)
     if t1 >= 0.0:
         return -t1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, i1
-    t2, x2, y2, z2, m2x, m2y, m2z, n2, i2, k20, k21, k22, k23 = _deepest3(
+    (t2, x2, y2, z2, m2x, m2y, m2z, n2, i2, k20, k21, k22, k23, s2, s2x, s2y,
+     s2z) = _deepest3(
         sa, sca, sb, scb, r00, r10, r20, r01, r11, r21, r02, r12, r22, qx, qy, qz,
         vstart, verts, fstart, faces, brad, tol)
     d1, d2 = -t1, -t2
@@ -1123,28 +1159,37 @@ def _polytope3(sa, a, sb, b, sx, sy, sz, pos, rot, geo):
         else:
             d2, x2, y2, z2, m2x, m2y, m2z = ov, cx, cy, cz, mx, my, mz
     if use1:
-        x1, y1, z1 = _contact_point3(sb, scb, sa, sca, r00, r01, r02, r10, r11, r12, r20,
-                                     r21, r22, px, py, pz, x1, y1, z1, m1x, m1y, m1z, d1,
-                                     vstart, verts, fstart, faces)
+        ov, h = d1, -0.5 * d1
         nx = -(b00 * m1x + b01 * m1y + b02 * m1z)  # -(B's normal)
         ny = -(b10 * m1x + b11 * m1y + b12 * m1z)
         nz = -(b20 * m1x + b21 * m1y + b22 * m1z)
         wx = b00 * x1 + b01 * y1 + b02 * z1 + pos[b, 0] + sx
         wy = b10 * x1 + b11 * y1 + b12 * z1 + pos[b, 1] + sy
         wz = b20 * x1 + b21 * y1 + b22 * z1 + pos[b, 2] + sz
-        h = -0.5 * d1
-        return d1, nx, ny, nz, wx + h * nx, wy + h * ny, wz + h * nz, i1 + i2
-    x2, y2, z2 = _contact_point3(sa, sca, sb, scb, r00, r10, r20, r01, r11, r21, r02, r12,
-                                 r22, qx, qy, qz, x2, y2, z2, m2x, m2y, m2z, d2, vstart,
-                                 verts, fstart, faces)
-    nx = a00 * m2x + a01 * m2y + a02 * m2z  # A's normal
-    ny = a10 * m2x + a11 * m2y + a12 * m2z
-    nz = a20 * m2x + a21 * m2y + a22 * m2z
-    wx = a00 * x2 + a01 * y2 + a02 * z2 + pos[a, 0]
-    wy = a10 * x2 + a11 * y2 + a12 * z2 + pos[a, 1]
-    wz = a20 * x2 + a21 * y2 + a22 * z2 + pos[a, 2]
-    h = 0.5 * d2
-    return d2, nx, ny, nz, wx + h * nx, wy + h * ny, wz + h * nz, i1 + i2
+    else:
+        ov, h = d2, 0.5 * d2
+        nx = a00 * m2x + a01 * m2y + a02 * m2z  # A's normal
+        ny = a10 * m2x + a11 * m2y + a12 * m2z
+        nz = a20 * m2x + a21 * m2y + a22 * m2z
+        wx = a00 * x2 + a01 * y2 + a02 * z2 + pos[a, 0]
+        wy = a10 * x2 + a11 * y2 + a12 * z2 + pos[a, 1]
+        wz = a20 * x2 + a21 * y2 + a22 * z2 + pos[a, 2]
+    # a vertex on a face: the point moves to the depth-weighted mean of the searched
+    # body's vertices inside the other, at the deepest point's level along n (none
+    # inside: a face won the separating-axis test with a vertex outside; keep it)
+    sw = s1 if use1 else s2
+    if sw > 0.0:
+        if use1:
+            ex = (b00 * s1x + b01 * s1y + b02 * s1z) / sw + pos[b, 0] + sx - wx
+            ey = (b10 * s1x + b11 * s1y + b12 * s1z) / sw + pos[b, 1] + sy - wy
+            ez = (b20 * s1x + b21 * s1y + b22 * s1z) / sw + pos[b, 2] + sz - wz
+        else:
+            ex = (a00 * s2x + a01 * s2y + a02 * s2z) / sw + pos[a, 0] - wx
+            ey = (a10 * s2x + a11 * s2y + a12 * s2z) / sw + pos[a, 1] - wy
+            ez = (a20 * s2x + a21 * s2y + a22 * s2z) / sw + pos[a, 2] - wz
+        e = ex * nx + ey * ny + ez * nz
+        wx, wy, wz = wx + ex - e * nx, wy + ey - e * ny, wz + ez - e * nz
+    return ov, nx, ny, nz, wx + h * nx, wy + h * ny, wz + h * nz, i1 + i2
 
 
 # --------------------------------------------------------------------------- public

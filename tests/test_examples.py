@@ -126,8 +126,9 @@ def test_ex03_ex04_momentum_conserved(name, request):
 @pytest.mark.parametrize("name", ["ex03", "ex04"])
 def test_ex03_ex04_energy_only_dissipated(name, request):
     ex = request.getfixturevalue(name)
-    # ex04: 3e-3 measured: contacts on creases (edge on edge) are not conservative yet
-    assert ex["energy_rise"] < (1e-4 if name == "ex03" else 1e-2)
-    # measured at the small size: 17 % (ex03) and 4.7 % (ex04) dissipated in 1.5 s
+    # ex04: 1.2e-4 measured, in one record (O(dt): a contact point jumping from the
+    # bottom to the top of two prisms, see the ex04 docstring)
+    assert ex["energy_rise"] < (1e-4 if name == "ex03" else 1e-3)
+    # measured at the small size: 17 % (ex03) and 4.2 % (ex04) dissipated in 1.5 s
     assert ex["dissipated"] > (0.05 if name == "ex03" else 0.02)
     assert ex["n_moving"] >= 3  # the shooter and at least two it hit

@@ -5,12 +5,14 @@ The polytope-polytope kernel is checked against the same linear programme solved
 optimum is a vertex, and against a separating-axis test over every face and every edge
 pair where it is not (3D edge across edge), on seeded random convex polygons and
 polyhedra, and on hand-worked box configurations; the contact point against the
-depth-weighted mean of the vertices behind the contact face. Properties: the overlap is
-continuous along paths, and for one vertex on a face or one edge on an edge the force
-``kn ov n`` at the point is minus the gradient of ``kn ov^2 / 2`` (conservative). The
-sphere kernels are checked against a closest point found face by face in numpy; the
-wall kernels against the deepest-vertex formula. Shape rows are built here by hand (in
-the body frame, faces ``n . x <= o``), so the tests depend only on the table layout.
+depth-weighted mean of the deeper side's vertices inside the other body. Properties: the
+overlap follows the penetration depth continuously as an edge slides off another, the
+point slides as a resting box tilts, and for one vertex on a face or one edge on an
+edge the force ``kn ov n`` at the point is minus the gradient of ``kn ov^2 / 2``
+(conservative). The sphere kernels are checked against a closest point found face by
+face in numpy; the wall kernels against the deepest-vertex formula. Shape rows are built
+here by hand (in the body frame, faces ``n . x <= o``), so the tests depend only on the
+table layout.
 """
 
 import numpy as np
@@ -191,16 +193,10 @@ def separating_axes_ref(va, fa, vb, fb):
     return best
 
 
-def face_point_ref(z, m, ov, vi, fo):
-    """The depth-weighted mean of the inner vertices ``vi`` behind the contact face
-    (outward normal ``m``, ``z`` at depth ``ov``), moved to ``z``'s level; and how many
-    vertices weigh."""
+def depth_ref(vi, fo):
+    """Depth of the vertices ``vi`` inside the body with faces ``fo`` (0 outside)."""
     d = vi.shape[1]
-    depth = z @ m + ov - vi @ m
-    outside = np.maximum(np.max(vi @ fo[:, :d].T - fo[:, d], axis=1), 0.0)
-    w = np.where(depth > 0.0, np.maximum(depth - outside, 0.0), 0.0)
-    mean = w @ vi / w.sum()
-    return mean - ((mean - z) @ m) * m, np.count_nonzero(w)
+    return np.maximum(-np.max(vi @ fo[:, :d].T - fo[:, d], axis=1), 0.0)
 
 
 def contact_ref(geo, sa, sb, dim, pos, rot):
@@ -232,13 +228,14 @@ def contact_ref(geo, sa, sb, dim, pos, rot):
             d1, x1, m1 = ov, p, u
         else:
             d2, x2, m2 = ov, p, u
-    if use1:
-        p, k = face_point_ref(x1, m1, d1, va, fb)
-        c, n, ov = p + 0.5 * d1 * m1, -m1, d1
-    else:
-        p, k = face_point_ref(x2, m2, d2, vb, fa)
-        c, n, ov = p + 0.5 * d2 * m2, m2, d2
-    return ov, n, c, rule + ("vertex" if k == 1 else "vertices")
+    # the point: the mean of the searched body's vertices inside the other weighted by
+    # their depth, moved along the normal to the deepest point's level
+    w, vi = (depth_ref(va, fb), va) if use1 else (depth_ref(vb, fa), vb)
+    ov, m, z = (d1, m1, x1) if use1 else (d2, m2, x2)  # m: the outer body's normal
+    mean = w @ vi / w.sum() if w.sum() > 0.0 else z
+    c = mean - ((mean - z) @ m) * m + 0.5 * ov * m
+    n = -m1 if use1 else m2
+    return ov, n, c, rule + ("vertex" if np.count_nonzero(w) == 1 else "vertices")
 
 
 def depths_ref(geo, sa, sb, dim, pos, rot):
@@ -331,7 +328,8 @@ def test_cube_corner_into_face():
 
 @pytest.mark.parametrize("dim", [2, 3])
 def test_face_on_face_offset(dim):
-    """A's bottom overhangs B's top face: the point is the mean of A's corners inside B."""
+    """A's bottom overhangs B's top face: the point is the mean of A's corners inside B
+    (x = -0.1), not moved by B's corner inside A (2D, x = 0.5)."""
     h = [0.4, 0.3, 0.5][:dim]
     geo = table([box_rows(h), box_rows([0.5] * dim)])
     delta = 0.01

@@ -15,7 +15,18 @@ surface point is ``c + ov/2 n`` and B's is ``c - ov/2 n``. For spheres both prob
 the familiar ``ov = r_A + r_B - |x_B - x_A|`` along the line of centres. For a corner of
 one polygon pressed into a face of another, the corner is the deeper point and the
 normal is the face's: a well-defined, continuous contact. Separated bodies give
-``ov <= 0``.
+``ov <= 0``. With several corners inside (a face or an edge lying on a face) the
+polytope kernels put ``c`` on the normal through the mean of the deeper side's vertices
+inside the other body, each weighted by its depth, so that it moves continuously as the
+face tilts.
+
+Where the deeper point sits on a crease of the other body's SDF (in 3D, an edge across
+an edge: both optima on creases) the gradient defining ``n`` does not exist. The exact
+polytope solver then returns the limit of the definition there, the separating-axis
+contact: ``ov`` the penetration depth (the shortest translation separating the bodies),
+``n`` its direction (``e_A x e_B`` for two edges), ``c`` the midpoint of the edges'
+closest points. The elastic force is then the gradient of ``kn ov^2 / 2`` on each piece,
+as for a corner in a face. ADMM solves the definition on the crease itself.
 
 Every detection kernel returns ``(ov, nx, ny, nz, cx, cy, cz, iters)`` (2D: ``nz = cz =
 0``), ``iters`` being the iterations an iterative solver took (0 for closed forms).
@@ -24,6 +35,7 @@ Modules
 -------
 analytic    closed forms: sphere-sphere, sphere-plane, sphere-polytope, polytope-plane
 polytope    the exact solver for polygon-polygon (2D) and polyhedron-polyhedron (3D)
+sat         its separating-axis contact for an edge across an edge (3D)
 admm        ADMM (Douglas-Rachford) on any two SDFs, warm-started from the last step
 nodes       the surface-node method of LS-DEM, the baseline of the speed-accuracy chart
 """

@@ -48,48 +48,29 @@ scale):
 
 Contact point of a vertex on a face
 -----------------------------------
-When the deeper optimum is a vertex, the point lies ``ov / 2`` in front of the
-depth-weighted mean of the searched body's vertices behind the contact face (the face
-whose normal is the contact normal), moved along the normal to the deepest vertex's
-level. A vertex weighs its depth behind the face's plane less how far it lies outside
-the other body, so it enters with weight 0 from whichever side it comes in. One vertex
-through: that vertex, the contract's point. Several (a face or an edge lying nearly
-flat): the point, and so the torque, moves continuously as the face tilts, where jumping
-between tied corners would make a box resting on another chatter; the force is then a
+When the deeper optimum is a vertex, the point lies ``ov / 2`` in front of the mean of
+the searched body's vertices that lie inside the other, each weighted by its depth
+there (``-phi``, free from the programme's first scan), moved along the normal to the
+deepest vertex's level. One vertex inside: that vertex, the contract's point. Several (a
+face or an edge lying nearly flat on a face): the point, and so the torque, moves
+continuously as the face tilts (a weight vanishes as its vertex comes in through any
+face), where jumping between tied corners, or to the other end when a tilt flips which
+is deepest, would make a box resting on another chatter; the force is then a
 distributed support, not the gradient of a potential (as in :func:`polytope_plane`).
+Only the deeper side's vertices count: weighing the other body's corners as well
+(inside it at the same time, as when two corners have passed each other) would move the
+point off the deepest vertex for most of such a contact, and an undamped collision of
+two pentagons then loses a tenth of its energy.
 
 Edge across edge (3D)
 ---------------------
 When the deeper problem's optimum (after the ties above) is *not a vertex* of the
-searched body, it lies generically on an edge of that body and on a crease of the
-other, where two of its faces are equally deep and its SDF has no gradient. There the
-contract's answer (depth below the two tied faces, normal their bisector: ``delta /
-sqrt(2)`` for two crossed cube edges pressed ``delta`` into each other) is not the
-gradient of any function of the pose, and a frictionless collision through it does not
-keep its energy. Such pairs get the separating-axis answer instead: the overlap ``ov``
-is the least, over candidate axes ``u``, of ``max_A u . x - min_B u . y``, i.e. the
-penetration depth (the shortest translation that separates the bodies). For an edge
-pair the axis is ``n = e_A x e_B / |e_A x e_B|`` oriented from A to B, ``ov`` is the
-distance between the two edge lines along ``n`` and ``c`` the midpoint of their closest
-points; when a face wins it is a vertex on a face, with the point above. Candidates:
-
-* every face normal of both bodies;
-* the edge pairs of the programmes' final bases (an edge of the searched body, two
-  rows, on a crease of the other, two rows; P1's and P2's), then the edge pairs at the
-  ends of either edge whose arcs of face normals cross (the Minkowski difference's
-  facets next to the current one), walking on while the overlap drops (``_MAX_WALK``
-  steps at most).
-
-This is the limit of P1/P2 where the SDF gradient is undefined: where the deeper
-optimum is a vertex with one face attaining the max, that face's normal is an axis
-along which the overlap is the vertex's depth, and no translation shorter than the
-vertex's depth takes it out of the other body, so the two answers agree; everywhere the
-penetration depth is at least ``max(d1, d2)``. It is continuous in the pose, and on each
-piece (one face and vertex, or one edge pair) the force ``kn ov n`` at ``c`` is its
-gradient with respect to the rigid motions, so an undamped collision keeps its energy
-up to the integrator's O(dt) error where the piece changes. The walk is local: for
-overlaps of a few per cent of the body size it finds the least overlap (tested against
-all edge pairs); deeper it may stop at a larger one, an upper bound of the depth.
+searched body it lies on a crease of the other body, where its SDF has no gradient and
+the contract's answer is not the gradient of any function of the pose. Such pairs get
+the separating-axis contact of :mod:`dem.contact.detection.sat` (the penetration depth,
+along an edge pair's cross product or a face normal), started from the edge pairs of
+both programmes' final bases (:func:`_crease_rows`): the limit of P1/P2 there, and
+conservative. When a face wins, the point is placed as for a vertex on a face.
 
 Limitations: the point of a face-on-face contact is a weighted mean of vertices, not
 the centroid of the overlap region. Shapes must be convex with outward unit face
@@ -100,14 +81,13 @@ import math
 
 from ..._jit import kernel
 from ...shapes.table import to_body, to_world
+from .sat import cross3, face_row3, sat_contact3
 
 #: relative tolerance of ties (equal depths, equally deep faces or vertices)
 TIE = 1e-12
 #: a pivot row must cross the edge direction by more than this (relative to |d|)
 _CROSS = 1e-12
 _MAX_PIVOTS = 100
-#: steps of the walk over neighbouring edge pairs (separating-axis test)
-_MAX_WALK = 8
 
 
 @kernel(inline=True)
@@ -171,10 +151,11 @@ def _row2(k, nfo, fo0, fi0, faces, sco, sci, c, s, px, py):
 def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol):
     """Minimise the outer polygon's face function over the inner polygon (outer frame).
 
-    Returns ``(t, x, y, nx, ny, count, pivots)``: the optimum, its point (the average of
-    the optimal inner vertices when several are), the normalised sum of the outer
-    normals attaining the max there, and how many inner vertices are optimal (0: the
-    optimum is not a vertex).
+    Returns ``(t, x, y, nx, ny, count, pivots, sw, swx, swy)``: the optimum, its point
+    (the average of the optimal inner vertices when several are), the normalised sum of
+    the outer normals attaining the max there, how many inner vertices are optimal (0:
+    the optimum is not a vertex), and the sums of ``w`` and ``w x`` over the inner
+    vertices inside, ``w`` a vertex's depth (for the contact point).
     """
     fo0, nfo = fstart[so], fstart[so + 1] - fstart[so]
     fi0, nfi = fstart[si], fstart[si + 1] - fstart[si]
@@ -183,6 +164,7 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
     # the two least values over all vertices (for the ties below)
     fmin, vb, fb = math.inf, 0, 0
     lo1, lo2 = math.inf, math.inf
+    sw, swx, swy = 0.0, 0.0, 0.0  # the inner vertices inside, weighted by their depth
     for v in range(nvi):
         lx, ly = sci * verts[vi0 + v, 0], sci * verts[vi0 + v, 1]
         wx, wy = c * lx - s * ly + px, s * lx + c * ly + py
@@ -191,6 +173,10 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
             val = faces[fo0 + k, 0] * wx + faces[fo0 + k, 1] * wy - sco * faces[fo0 + k, 3]
             if val > fv:
                 fv, fa = val, k
+        if fv < 0.0:
+            sw -= fv
+            swx -= fv * wx
+            swy -= fv * wy
         if fv < lo2:
             lo1, lo2 = min(fv, lo1), max(fv, lo1)
         e = v - 1 if v > 0 else nfi - 1  # the edges into and out of vertex v
@@ -310,44 +296,7 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
             if val > best:
                 best, nx, ny = val, faces[f, 0], faces[f, 1]
         norm = 1.0
-    return zt, zx, zy, nx / norm, ny / norm, count, it
-
-
-@kernel
-def _contact_point2(so, sco, si, sci, c, s, px, py, zx, zy, mx, my, ov, vstart, verts,
-                    fstart, faces):
-    """Where the force of a contact along a face acts (outer frame).
-
-    ``z`` is the inner body's deepest point, at depth ``ov`` behind the contact face,
-    ``m`` that face's outward unit normal. Each inner vertex behind the face's plane
-    weighs its depth there, less how far it lies outside the outer body (so that a
-    vertex enters the mean with weight 0 whichever way it comes in). Returns the
-    weighted mean moved along ``m`` to the level of ``z``: ``z`` itself when no other
-    vertex weighs.
-    """
-    sw, sx, sy = 0.0, 0.0, 0.0
-    top = mx * zx + my * zy + ov  # the face's plane: m . x = top
-    for v in range(vstart[si], vstart[si + 1]):
-        lx, ly = sci * verts[v, 0], sci * verts[v, 1]
-        wx, wy = c * lx - s * ly + px, s * lx + c * ly + py
-        d = top - (mx * wx + my * wy)
-        if d <= 0.0:
-            continue
-        phi = 0.0  # how far outside the outer body (0 inside)
-        for f in range(fstart[so], fstart[so + 1]):
-            phi = max(phi, faces[f, 0] * wx + faces[f, 1] * wy - sco * faces[f, 3])
-            if phi >= d:
-                break
-        d -= phi
-        if d > 0.0:
-            sw += d
-            sx += d * wx
-            sy += d * wy
-    if sw == 0.0:
-        return zx, zy
-    ax, ay = sx / sw - zx, sy / sw - zy
-    h = ax * mx + ay * my
-    return zx + ax - h * mx, zy + ay - h * my
+    return zt, zx, zy, nx / norm, ny / norm, count, it, sw, swx, swy
 
 
 @kernel
@@ -366,30 +315,36 @@ def _polytope2(sa, a, sb, b, sx, sy, pos, rot, geo):
               _separation2(sa, sca, sb, scb, c, -s, qx, qy, vstart, verts, fstart, faces))
     if sep > 0.0:
         return -sep, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0
-    t1, x1, y1, m1x, m1y, n1, i1 = _deepest2(sb, scb, sa, sca, c, s, px, py, vstart, verts,
-                                              fstart, faces, tol)
+    t1, x1, y1, m1x, m1y, n1, i1, s1, s1x, s1y = _deepest2(
+        sb, scb, sa, sca, c, s, px, py, vstart, verts, fstart, faces, tol)
     if t1 >= 0.0:
         return -t1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, i1
-    t2, x2, y2, m2x, m2y, n2, i2 = _deepest2(sa, sca, sb, scb, c, -s, qx, qy, vstart, verts,
-                                              fstart, faces, tol)
+    t2, x2, y2, m2x, m2y, n2, i2, s2, s2x, s2y = _deepest2(
+        sa, sca, sb, scb, c, -s, qx, qy, vstart, verts, fstart, faces, tol)
     d1, d2 = -t1, -t2
-    if d1 > d2 + tol or (d1 >= d2 - tol and n1 >= n2):
-        if n1 > 0:
-            x1, y1 = _contact_point2(sb, scb, sa, sca, c, s, px, py, x1, y1, m1x, m1y, d1,
-                                     vstart, verts, fstart, faces)
+    use1 = d1 > d2 + tol or (d1 >= d2 - tol and n1 >= n2)
+    if use1:
+        ov, cnt, h = d1, n1, -0.5 * d1
         nx, ny = -(cb * m1x - snb * m1y), -(snb * m1x + cb * m1y)  # -(B's normal)
         wx = cb * x1 - snb * y1 + pos[b, 0] + sx
         wy = snb * x1 + cb * y1 + pos[b, 1] + sy
-        h = -0.5 * d1
-        return d1, nx, ny, 0.0, wx + h * nx, wy + h * ny, 0.0, i1 + i2
-    if n2 > 0:
-        x2, y2 = _contact_point2(sa, sca, sb, scb, c, -s, qx, qy, x2, y2, m2x, m2y, d2,
-                                 vstart, verts, fstart, faces)
-    nx, ny = ca * m2x - sna * m2y, sna * m2x + ca * m2y  # A's normal
-    wx = ca * x2 - sna * y2 + pos[a, 0]
-    wy = sna * x2 + ca * y2 + pos[a, 1]
-    h = 0.5 * d2
-    return d2, nx, ny, 0.0, wx + h * nx, wy + h * ny, 0.0, i1 + i2
+    else:
+        ov, cnt, h = d2, n2, 0.5 * d2
+        nx, ny = ca * m2x - sna * m2y, sna * m2x + ca * m2y  # A's normal
+        wx = ca * x2 - sna * y2 + pos[a, 0]
+        wy = sna * x2 + ca * y2 + pos[a, 1]
+    # a vertex on a face: the point moves to the depth-weighted mean of the searched
+    # body's vertices inside the other, at the deepest point's level along n
+    if cnt > 0:
+        if use1:
+            ex = (cb * s1x - snb * s1y) / s1 + pos[b, 0] + sx - wx
+            ey = (snb * s1x + cb * s1y) / s1 + pos[b, 1] + sy - wy
+        else:
+            ex = (ca * s2x - sna * s2y) / s2 + pos[a, 0] - wx
+            ey = (sna * s2x + ca * s2y) / s2 + pos[a, 1] - wy
+        e = ex * nx + ey * ny
+        wx, wy = wx + ex - e * nx, wy + ey - e * ny
+    return ov, nx, ny, 0.0, wx + h * nx, wy + h * ny, 0.0, i1 + i2
 
 
 # --------------------------------------------------------------------------- 3D
@@ -426,12 +381,9 @@ def _row3(k, nfo, fo0, fi0, faces, sco, sci, r00, r01, r02, r10, r11, r12, r20, 
     if k < nfo:
         f = fo0 + k
         return faces[f, 0], faces[f, 1], faces[f, 2], -1.0, sco * faces[f, 3]
-    g = fi0 + k - nfo
-    nx, ny, nz = faces[g, 0], faces[g, 1], faces[g, 2]
-    ax = r00 * nx + r01 * ny + r02 * nz
-    ay = r10 * nx + r11 * ny + r12 * nz
-    az = r20 * nx + r21 * ny + r22 * nz
-    return ax, ay, az, 0.0, sci * faces[g, 3] + ax * px + ay * py + az * pz
+    ax, ay, az, h = face_row3(fi0 + k - nfo, sci, r00, r01, r02, r10, r11, r12, r20, r21,
+                              r22, px, py, pz, faces)
+    return ax, ay, az, 0.0, h
 
 
 @kernel(inline=True)
@@ -447,17 +399,15 @@ def _corner3(si, v, fstart, faces, verts, eps):
         if g1 < 0:
             g1 = g
             continue
-        cx = faces[g1, 1] * faces[g, 2] - faces[g1, 2] * faces[g, 1]
-        cy = faces[g1, 2] * faces[g, 0] - faces[g1, 0] * faces[g, 2]
-        cz = faces[g1, 0] * faces[g, 1] - faces[g1, 1] * faces[g, 0]
+        cx, cy, cz = cross3(faces[g1, 0], faces[g1, 1], faces[g1, 2],
+                            faces[g, 0], faces[g, 1], faces[g, 2])
         w = cx * cx + cy * cy + cz * cz
         if w > best2:
             best2, g2 = w, g
     if g2 < 0:
         return g1, g2, g3, 0.0
-    cx = faces[g1, 1] * faces[g2, 2] - faces[g1, 2] * faces[g2, 1]
-    cy = faces[g1, 2] * faces[g2, 0] - faces[g1, 0] * faces[g2, 2]
-    cz = faces[g1, 0] * faces[g2, 1] - faces[g1, 1] * faces[g2, 0]
+    cx, cy, cz = cross3(faces[g1, 0], faces[g1, 1], faces[g1, 2],
+                        faces[g2, 0], faces[g2, 1], faces[g2, 2])
     for g in range(fstart[si], fstart[si + 1]):
         if faces[g, 0] * x + faces[g, 1] * y + faces[g, 2] * z - faces[g, 3] < -eps:
             continue
@@ -472,15 +422,16 @@ def _deepest3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22, px,
               vstart, verts, fstart, faces, brad, tol):
     """Minimise the outer polyhedron's face function over the inner one (outer frame).
 
-    Returns ``(t, x, y, z, nx, ny, nz, count, pivots, k0, k1, k2, k3)`` as
-    :func:`_deepest2`, and the rows of the final basis (outer faces ``0 .. nfo - 1``,
-    then inner faces).
+    Returns ``(t, x, y, z, nx, ny, nz, count, pivots, k0, k1, k2, k3, sw, swx, swy,
+    swz)`` as :func:`_deepest2`, with the rows of the final basis (outer faces ``0 ..
+    nfo - 1``, then inner faces).
     """
     fo0, nfo = fstart[so], fstart[so + 1] - fstart[so]
     fi0, nfi = fstart[si], fstart[si + 1] - fstart[si]
     vi0, nvi = vstart[si], vstart[si + 1] - vstart[si]
     # start: the inner vertex where the outer face function is least
     fmin, lo2, vb = math.inf, math.inf, vi0  # the two least values, the first's vertex
+    sw, swx, swy, swz = 0.0, 0.0, 0.0, 0.0  # the inner vertices inside, weighted by depth
     for v in range(vi0, vi0 + nvi):
         lx, ly, lz = sci * verts[v, 0], sci * verts[v, 1], sci * verts[v, 2]
         wx = r00 * lx + r01 * ly + r02 * lz + px
@@ -490,6 +441,11 @@ def _deepest3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22, px,
         for f in range(fo0, fo0 + nfo):
             fv = max(fv, faces[f, 0] * wx + faces[f, 1] * wy + faces[f, 2] * wz
                      - sco * faces[f, 3])
+        if fv < 0.0:
+            sw -= fv
+            swx -= fv * wx
+            swy -= fv * wy
+            swz -= fv * wz
         if fv < fmin:
             fmin, lo2, vb = fv, fmin, v
         elif fv < lo2:
@@ -659,282 +615,7 @@ def _deepest3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22, px,
                 best, nx, ny, nz = val, faces[f, 0], faces[f, 1], faces[f, 2]
         norm = 1.0
     return (zt, zx, zy, zz, nx / norm, ny / norm, nz / norm, count, it,
-            k0, k1, k2, k3)
-
-
-@kernel
-def _contact_point3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                    px, py, pz, zx, zy, zz, mx, my, mz, ov, vstart, verts, fstart, faces):
-    """Where the force of a contact along a face acts (outer frame): as
-    :func:`_contact_point2`, the inner body placed at ``R x + p``."""
-    sw, sx, sy, sz = 0.0, 0.0, 0.0, 0.0
-    top = mx * zx + my * zy + mz * zz + ov  # the face's plane: m . x = top
-    for v in range(vstart[si], vstart[si + 1]):
-        lx, ly, lz = sci * verts[v, 0], sci * verts[v, 1], sci * verts[v, 2]
-        wx = r00 * lx + r01 * ly + r02 * lz + px
-        wy = r10 * lx + r11 * ly + r12 * lz + py
-        wz = r20 * lx + r21 * ly + r22 * lz + pz
-        d = top - (mx * wx + my * wy + mz * wz)
-        if d <= 0.0:
-            continue
-        phi = 0.0  # how far outside the outer body (0 inside)
-        for f in range(fstart[so], fstart[so + 1]):
-            phi = max(phi, faces[f, 0] * wx + faces[f, 1] * wy + faces[f, 2] * wz
-                      - sco * faces[f, 3])
-            if phi >= d:
-                break
-        d -= phi
-        if d > 0.0:
-            sw += d
-            sx += d * wx
-            sy += d * wy
-            sz += d * wz
-    if sw == 0.0:
-        return zx, zy, zz
-    ax, ay, az = sx / sw - zx, sy / sw - zy, sz / sw - zz
-    h = ax * mx + ay * my + az * mz
-    return zx + ax - h * mx, zy + ay - h * my, zz + az - h * mz
-
-
-@kernel(inline=True)
-def _plane_line(ax, ay, az, ao, bx, by, bz, bo):
-    """The line where the planes ``a . x = ao`` and ``b . x = bo`` meet: its point
-    nearest the origin and its direction ``a x b`` (not normalised, 0 if parallel)."""
-    ex, ey, ez = ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
-    ee = ex * ex + ey * ey + ez * ez
-    if ee == 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    ab = ax * bx + ay * by + az * bz
-    aa = ax * ax + ay * ay + az * az
-    bb = bx * bx + by * by + bz * bz
-    al = (bb * ao - ab * bo) / ee  # x = al a + be b, the Gram determinant is |a x b|^2
-    be = (aa * bo - ab * ao) / ee
-    return al * ax + be * bx, al * ay + be * by, al * az + be * bz, ex, ey, ez
-
-
-@kernel(inline=True)
-def _face_row3(g, sc, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, faces):
-    """Face ``g`` of a body placed at ``R x + p`` (scale ``sc``): (normal, offset)."""
-    nx, ny, nz = faces[g, 0], faces[g, 1], faces[g, 2]
-    ax = r00 * nx + r01 * ny + r02 * nz
-    ay = r10 * nx + r11 * ny + r12 * nz
-    az = r20 * nx + r21 * ny + r22 * nz
-    return ax, ay, az, sc * faces[g, 3] + ax * px + ay * py + az * pz
-
-
-@kernel
-def _face_axes3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                px, py, pz, vstart, verts, fstart, faces, bound):
-    """The least overlap along the outer body's face normals (separating-axis test).
-
-    The inner body sits in the outer frame at ``R x + p``. Along face ``f`` the overlap
-    is the depth of the inner body's lowest vertex below the face's plane. Returns
-    ``(overlap, f, v)``: the least overlap below ``bound``, its face and that vertex
-    (table rows), or ``(bound, -1, -1)``.
-    """
-    best, fb, vb = bound, -1, -1
-    for f in range(fstart[so], fstart[so + 1]):
-        nx, ny, nz = faces[f, 0], faces[f, 1], faces[f, 2]
-        mx = r00 * nx + r10 * ny + r20 * nz  # R^T n: the normal in the inner frame
-        my = r01 * nx + r11 * ny + r21 * nz
-        mz = r02 * nx + r12 * ny + r22 * nz
-        off = sco * faces[f, 3] - nx * px - ny * py - nz * pz
-        cut = (off - best) / sci  # a vertex below this level: no better than best
-        lo, vl = math.inf, -1
-        for v in range(vstart[si], vstart[si + 1]):
-            val = mx * verts[v, 0] + my * verts[v, 1] + mz * verts[v, 2]
-            if val < lo:
-                lo, vl = val, v
-                if lo <= cut:
-                    break
-        ov = off - sci * lo
-        if ov < best:
-            best, fb, vb = ov, f, vl
-    return best, fb, vb
-
-
-@kernel(inline=True)
-def _line_pair(xax, xay, xaz, eax, eay, eaz, xbx, xby, xbz, ebx, eby, ebz):
-    """Midpoint of the closest points of lines ``xa + s ea`` and ``xb + t eb``
-    (not parallel)."""
-    wx, wy, wz = xax - xbx, xay - xby, xaz - xbz
-    aa = eax * eax + eay * eay + eaz * eaz
-    bb = ebx * ebx + eby * eby + ebz * ebz
-    ab = eax * ebx + eay * eby + eaz * ebz
-    d = eax * wx + eay * wy + eaz * wz
-    e = ebx * wx + eby * wy + ebz * wz
-    den = aa * bb - ab * ab
-    s = (ab * e - bb * d) / den
-    t = (aa * e - ab * d) / den
-    return (0.5 * (xax + s * eax + xbx + t * ebx), 0.5 * (xay + s * eay + xby + t * eby),
-            0.5 * (xaz + s * eaz + xbz + t * ebz))
-
-
-@kernel(inline=True)
-def _edge_normal(a1x, a1y, a1z, a2x, a2y, a2z, b1x, b1y, b1z, b2x, b2y, b2z):
-    """Unit ``(a1 x a2) x (b1 x b2)`` oriented out of A (``n . (a1 + a2) > 0``), for the
-    edge of A between faces with normals a1, a2 and of B between b1, b2; zero when the
-    edges are parallel. Also returns the two edge directions."""
-    eax, eay, eaz = a1y * a2z - a1z * a2y, a1z * a2x - a1x * a2z, a1x * a2y - a1y * a2x
-    ebx, eby, ebz = b1y * b2z - b1z * b2y, b1z * b2x - b1x * b2z, b1x * b2y - b1y * b2x
-    nx, ny, nz = eay * ebz - eaz * eby, eaz * ebx - eax * ebz, eax * eby - eay * ebx
-    nn = nx * nx + ny * ny + nz * nz
-    if not nn > 1e-12 * ((eax * eax + eay * eay + eaz * eaz)
-                         * (ebx * ebx + eby * eby + ebz * ebz)):
-        return 0.0, 0.0, 0.0, eax, eay, eaz, ebx, eby, ebz
-    nrm = math.sqrt(nn)
-    if nx * (a1x + a2x) + ny * (a1y + a2y) + nz * (a1z + a2z) < 0.0:
-        nrm = -nrm
-    return nx / nrm, ny / nrm, nz / nrm, eax, eay, eaz, ebx, eby, ebz
-
-
-@kernel
-def _edge_axis3(sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                px, py, pz, vstart, verts, faces, ga, gb, fa, fb):
-    """Overlap along the cross product of an edge of A and an edge of B (B's frame).
-
-    A sits in B's frame at ``R x + p``; its edge is where its faces ``ga``, ``gb``
-    meet, B's where ``fa``, ``fb`` meet. The axis ``n`` is oriented out of A and into
-    B; the overlap is ``max_A n . x - min_B n . y`` (an upper bound of the penetration
-    depth, equal to the distance between the two edge lines when the edges are the
-    bodies' extreme features along ``n``). Returns ``(overlap, nx, ny, nz, cx, cy,
-    cz)`` with ``c`` the midpoint of the lines' closest points, or an infinite overlap
-    when the edges are parallel.
-    """
-    a1x, a1y, a1z, a1o = _face_row3(ga, sca, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                                    px, py, pz, faces)
-    a2x, a2y, a2z, a2o = _face_row3(gb, sca, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                                    px, py, pz, faces)
-    b1x, b1y, b1z, b1o = faces[fa, 0], faces[fa, 1], faces[fa, 2], scb * faces[fa, 3]
-    b2x, b2y, b2z, b2o = faces[fb, 0], faces[fb, 1], faces[fb, 2], scb * faces[fb, 3]
-    nx, ny, nz, _, _, _, _, _, _ = _edge_normal(a1x, a1y, a1z, a2x, a2y, a2z,
-                                                b1x, b1y, b1z, b2x, b2y, b2z)
-    if nx == 0.0 and ny == 0.0 and nz == 0.0:
-        return math.inf, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    xax, xay, xaz, eax, eay, eaz = _plane_line(a1x, a1y, a1z, a1o, a2x, a2y, a2z, a2o)
-    xbx, xby, xbz, ebx, eby, ebz = _plane_line(b1x, b1y, b1z, b1o, b2x, b2y, b2z, b2o)
-    cx, cy, cz = _line_pair(xax, xay, xaz, eax, eay, eaz, xbx, xby, xbz, ebx, eby, ebz)
-    # support of A along n (read in A's frame) and of B along -n
-    mx = r00 * nx + r10 * ny + r20 * nz
-    my = r01 * nx + r11 * ny + r21 * nz
-    mz = r02 * nx + r12 * ny + r22 * nz
-    hi = -math.inf
-    for v in range(vstart[sa], vstart[sa + 1]):
-        hi = max(hi, mx * verts[v, 0] + my * verts[v, 1] + mz * verts[v, 2])
-    lo = math.inf
-    for v in range(vstart[sb], vstart[sb + 1]):
-        lo = min(lo, nx * verts[v, 0] + ny * verts[v, 1] + nz * verts[v, 2])
-    ov = sca * hi + nx * px + ny * py + nz * pz - scb * lo
-    return ov, nx, ny, nz, cx, cy, cz
-
-
-@kernel
-def _edge_ends3(s, sc, g1, g2, fstart, faces):
-    """The edge of body ``s`` (own frame) where faces ``g1``, ``g2`` meet: a point on
-    its line, the unit direction and the parameters of its two ends (``lo > hi``: the
-    line misses the body, the faces do not meet in an edge)."""
-    xx, xy, xz, ex, ey, ez = _plane_line(faces[g1, 0], faces[g1, 1], faces[g1, 2],
-                                         sc * faces[g1, 3], faces[g2, 0], faces[g2, 1],
-                                         faces[g2, 2], sc * faces[g2, 3])
-    norm = math.sqrt(ex * ex + ey * ey + ez * ez)
-    if norm == 0.0:
-        return xx, xy, xz, 0.0, 0.0, 0.0, 1.0, -1.0
-    ex, ey, ez = ex / norm, ey / norm, ez / norm
-    lo, hi = -math.inf, math.inf
-    for h in range(fstart[s], fstart[s + 1]):
-        if h == g1 or h == g2:
-            continue
-        den = faces[h, 0] * ex + faces[h, 1] * ey + faces[h, 2] * ez
-        num = sc * faces[h, 3] - (faces[h, 0] * xx + faces[h, 1] * xy + faces[h, 2] * xz)
-        if den > 1e-12:
-            hi = min(hi, num / den)
-        elif den < -1e-12:
-            lo = max(lo, num / den)
-        elif num < 0.0:
-            return xx, xy, xz, ex, ey, ez, 1.0, -1.0
-    return xx, xy, xz, ex, ey, ez, lo, hi
-
-
-@kernel
-def _vertex_edges3(s, sc, vx, vy, vz, is_a, skip1, skip2, r00, r01, r02, r10, r11, r12,
-                   r20, r21, r22, px, py, pz, fstart, faces, eps,
-                   o1x, o1y, o1z, o2x, o2y, o2z, xox, xoy, xoz, eox, eoy, eoz):
-    """The least edge-edge overlap between the edges at vertex ``v`` of body ``s`` and
-    one edge of the other body (B's frame).
-
-    ``v`` is in the body's own frame, placed in B's at ``R x + p``; ``is_a`` tells
-    whether ``s`` is A. The other edge has face normals ``o1``, ``o2`` and line
-    ``xo + t eo`` (B's frame). Every pair of faces through ``v`` but ``(skip1, skip2)``
-    is tried (a pair that is no edge lies inside the vertex's normal cone, where ``v``
-    is still the extreme point: its overlap is an upper bound too); a pair counts when
-    its arc of normals crosses the other edge's (negated for B), i.e. when the two
-    edges are the extreme features along their cross product. Returns ``(overlap, nx,
-    ny, nz, cx, cy, cz, i, j)`` in B's frame with ``i, j`` the pair's faces, overlap
-    infinite if no pair counts.
-    """
-    best, bnx, bny, bnz, bcx, bcy, bcz = math.inf, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    bi, bj = -1, -1
-    wx = r00 * vx + r01 * vy + r02 * vz + px  # v in B's frame
-    wy = r10 * vx + r11 * vy + r12 * vz + py
-    wz = r20 * vx + r21 * vy + r22 * vz + pz
-    f0, f1 = fstart[s], fstart[s + 1]
-    through = 0  # bit k: face f0 + k passes through v (the first 62 faces)
-    for i in range(f0, min(f1, f0 + 62)):
-        if abs(faces[i, 0] * vx + faces[i, 1] * vy + faces[i, 2] * vz
-               - sc * faces[i, 3]) <= eps:
-            through |= 1 << (i - f0)
-    for i in range(f0, f1):
-        if i - f0 < 62:
-            if not (through >> (i - f0)) & 1:
-                continue
-        elif abs(faces[i, 0] * vx + faces[i, 1] * vy + faces[i, 2] * vz
-                 - sc * faces[i, 3]) > eps:
-            continue
-        ix, iy, iz, _ = _face_row3(i, 1.0, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                                   0.0, 0.0, 0.0, faces)
-        for j in range(i + 1, f1):
-            if (i == skip1 and j == skip2) or (i == skip2 and j == skip1):
-                continue
-            if j - f0 < 62:
-                if not (through >> (j - f0)) & 1:
-                    continue
-            elif abs(faces[j, 0] * vx + faces[j, 1] * vy + faces[j, 2] * vz
-                     - sc * faces[j, 3]) > eps:
-                continue
-            jx, jy, jz, _ = _face_row3(j, 1.0, r00, r01, r02, r10, r11, r12, r20, r21,
-                                       r22, 0.0, 0.0, 0.0, faces)
-            if is_a:
-                a1x, a1y, a1z, a2x, a2y, a2z = ix, iy, iz, jx, jy, jz
-                b1x, b1y, b1z, b2x, b2y, b2z = o1x, o1y, o1z, o2x, o2y, o2z
-            else:
-                a1x, a1y, a1z, a2x, a2y, a2z = o1x, o1y, o1z, o2x, o2y, o2z
-                b1x, b1y, b1z, b2x, b2y, b2z = ix, iy, iz, jx, jy, jz
-            # do the arcs a1-a2 and (-b1)-(-b2) of the unit sphere cross?
-            ux, uy, uz = a2y * a1z - a2z * a1y, a2z * a1x - a2x * a1z, a2x * a1y - a2y * a1x
-            qx, qy, qz = b2y * b1z - b2z * b1y, b2z * b1x - b2x * b1z, b2x * b1y - b2y * b1x
-            cba = -(b1x * ux + b1y * uy + b1z * uz)
-            dba = -(b2x * ux + b2y * uy + b2z * uz)
-            adc = a1x * qx + a1y * qy + a1z * qz
-            bdc = a2x * qx + a2y * qy + a2z * qz
-            if not (cba * dba < 0.0 and adc * bdc < 0.0 and cba * bdc > 0.0):
-                continue
-            nx, ny, nz, eax, eay, eaz, ebx, eby, ebz = _edge_normal(
-                a1x, a1y, a1z, a2x, a2y, a2z, b1x, b1y, b1z, b2x, b2y, b2z)
-            if nx == 0.0 and ny == 0.0 and nz == 0.0:
-                continue
-            dx, dy, dz = wx - xox, wy - xoy, wz - xoz  # from the other line to v
-            ov = nx * dx + ny * dy + nz * dz
-            if not is_a:
-                ov = -ov
-            if ov < best:
-                best, bnx, bny, bnz, bi, bj = ov, nx, ny, nz, i, j
-                if is_a:
-                    bcx, bcy, bcz = _line_pair(wx, wy, wz, eax, eay, eaz,
-                                               xox, xoy, xoz, eox, eoy, eoz)
-                else:
-                    bcx, bcy, bcz = _line_pair(xox, xoy, xoz, eox, eoy, eoz,
-                                               wx, wy, wz, ebx, eby, ebz)
-    return best, bnx, bny, bnz, bcx, bcy, bcz, bi, bj
+            k0, k1, k2, k3, sw, swx, swy, swz)
 
 
 @kernel(inline=True)
@@ -956,105 +637,6 @@ def _crease_rows(k0, k1, k2, k3, nfo, fo0, fi0):
     if n_out != 2:
         return -1, -1, -1, -1
     return i1, i2, o1, o2
-
-
-@kernel
-def _edge_contact3(sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                   px, py, pz, qx, qy, qz, vstart, verts, fstart, faces, brad,
-                   ga1, ga2, fb1, fb2, ga3, ga4, fb3, fb4):
-    """Contact by the separating-axis test where the deeper optimum is not a vertex.
-
-    Candidate axes: every face normal of both bodies and the edge-edge axes of the
-    creases the two programmes ended on (A's faces ``ga1, ga2`` with B's ``fb1, fb2``
-    from P1, ``ga3, ga4`` with ``fb3, fb4`` from P2; ``-1``: none). The least overlap
-    wins. Returns ``(kind, ov, nx, ny, nz, cx, cy, cz)``: kind 0, a face of B (its
-    outward normal and A's deepest vertex, in B's frame); 1, a face of A (its outward
-    normal and B's deepest vertex, in A's frame); 2, an edge on an edge (the normal
-    from A to B and the contact point, in B's frame).
-    """
-    kind, ov, nx, ny, nz, cx, cy, cz = 2, math.inf, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    eps_a = 1e-9 * sca * brad[sa]
-    eps_b = 1e-9 * scb * brad[sb]
-    for pair in range(2):
-        ga, gb, fa, fb = (ga1, ga2, fb1, fb2) if pair == 0 else (ga3, ga4, fb3, fb4)
-        if ga < 0 or (pair == 1 and ga1 >= 0 and min(ga, gb) == min(ga1, ga2)
-                      and max(ga, gb) == max(ga1, ga2) and min(fa, fb) == min(fb1, fb2)
-                      and max(fa, fb) == max(fb1, fb2)):
-            continue  # none, or the same crease as P1's
-        cur, mx, my, mz, ex, ey, ez = _edge_axis3(
-            sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz,
-            vstart, verts, faces, ga, gb, fa, fb)
-        if cur < ov:
-            kind, ov, nx, ny, nz, cx, cy, cz = 2, cur, mx, my, mz, ex, ey, ez
-        # walk to the edge pairs at the ends of either edge while the overlap drops
-        for _ in range(_MAX_WALK):
-            a1x, a1y, a1z, a1o = _face_row3(ga, sca, r00, r01, r02, r10, r11, r12, r20,
-                                            r21, r22, px, py, pz, faces)
-            a2x, a2y, a2z, a2o = _face_row3(gb, sca, r00, r01, r02, r10, r11, r12, r20,
-                                            r21, r22, px, py, pz, faces)
-            b1x, b1y, b1z = faces[fa, 0], faces[fa, 1], faces[fa, 2]
-            b2x, b2y, b2z = faces[fb, 0], faces[fb, 1], faces[fb, 2]
-            xax, xay, xaz, eax, eay, eaz = _plane_line(a1x, a1y, a1z, a1o,
-                                                       a2x, a2y, a2z, a2o)
-            xbx, xby, xbz, ebx, eby, ebz = _plane_line(b1x, b1y, b1z, scb * faces[fa, 3],
-                                                       b2x, b2y, b2z, scb * faces[fb, 3])
-            # the two edges in their own frames; a line that misses its body (two faces
-            # that do not meet) is no edge, and the other side cannot be paired with it
-            tax, tay, taz, uax, uay, uaz, loa, hia = _edge_ends3(sa, sca, ga, gb, fstart,
-                                                                 faces)
-            tbx, tby, tbz, ubx, uby, ubz, lob, hib = _edge_ends3(sb, scb, fa, fb, fstart,
-                                                                 faces)
-            real_a, real_b = loa <= hia + eps_a, lob <= hib + eps_b
-            step, side_to, ng, nh = cur, -1, -1, -1
-            for side in range(2):
-                if not (real_a and real_b):
-                    break
-                for end in range(2):
-                    if side == 0:
-                        t = loa if end == 0 else hia
-                        ov3, mx, my, mz, ex, ey, ez, g, h = _vertex_edges3(
-                            sa, sca, tax + t * uax, tay + t * uay, taz + t * uaz, True,
-                            ga, gb, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                            px, py, pz, fstart, faces, eps_a, b1x, b1y, b1z, b2x, b2y,
-                            b2z, xbx, xby, xbz, ebx, eby, ebz)
-                    else:
-                        t = lob if end == 0 else hib
-                        ov3, mx, my, mz, ex, ey, ez, g, h = _vertex_edges3(
-                            sb, scb, tbx + t * ubx, tby + t * uby, tbz + t * ubz, False,
-                            fa, fb, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0,
-                            0.0, 0.0, 0.0, fstart, faces, eps_b, a1x, a1y, a1z, a2x,
-                            a2y, a2z, xax, xay, xaz, eax, eay, eaz)
-                    if ov3 < step:
-                        step, side_to, ng, nh = ov3, side, g, h
-                    if ov3 < ov:
-                        kind, ov, nx, ny, nz, cx, cy, cz = 2, ov3, mx, my, mz, ex, ey, ez
-            if side_to < 0:
-                break
-            cur = step
-            if side_to == 0:
-                ga, gb = ng, nh
-            else:
-                fa, fb = ng, nh
-    # the faces of B against A's vertices, then A's against B's (in A's frame)
-    ov2, f, v = _face_axes3(sb, scb, sa, sca, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                            px, py, pz, vstart, verts, fstart, faces, ov)
-    if f >= 0:
-        kind, ov = 0, ov2
-        nx, ny, nz = faces[f, 0], faces[f, 1], faces[f, 2]
-        lx, ly, lz = sca * verts[v, 0], sca * verts[v, 1], sca * verts[v, 2]
-        cx = r00 * lx + r01 * ly + r02 * lz + px
-        cy = r10 * lx + r11 * ly + r12 * lz + py
-        cz = r20 * lx + r21 * ly + r22 * lz + pz
-    ov2, f, v = _face_axes3(sa, sca, sb, scb, r00, r10, r20, r01, r11, r21, r02, r12, r22,
-                            qx, qy, qz, vstart, verts, fstart, faces, ov)
-    if f >= 0:
-        kind, ov = 1, ov2
-        nx, ny, nz = faces[f, 0], faces[f, 1], faces[f, 2]
-        lx, ly, lz = scb * verts[v, 0], scb * verts[v, 1], scb * verts[v, 2]
-        cx = r00 * lx + r10 * ly + r20 * lz + qx
-        cy = r01 * lx + r11 * ly + r21 * lz + qy
-        cz = r02 * lx + r12 * ly + r22 * lz + qz
-    return kind, ov, nx, ny, nz, cx, cy, cz
 
 
 @kernel
@@ -1090,12 +672,14 @@ def _polytope3(sa, a, sb, b, sx, sy, sz, pos, rot, geo):
                            qx, qy, qz, vstart, verts, fstart, faces))
     if sep > 0.0:
         return -sep, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0
-    t1, x1, y1, z1, m1x, m1y, m1z, n1, i1, k10, k11, k12, k13 = _deepest3(
+    (t1, x1, y1, z1, m1x, m1y, m1z, n1, i1, k10, k11, k12, k13, s1, s1x, s1y,
+     s1z) = _deepest3(
         sb, scb, sa, sca, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz,
         vstart, verts, fstart, faces, brad, tol)
     if t1 >= 0.0:
         return -t1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, i1
-    t2, x2, y2, z2, m2x, m2y, m2z, n2, i2, k20, k21, k22, k23 = _deepest3(
+    (t2, x2, y2, z2, m2x, m2y, m2z, n2, i2, k20, k21, k22, k23, s2, s2x, s2y,
+     s2z) = _deepest3(
         sa, sca, sb, scb, r00, r10, r20, r01, r11, r21, r02, r12, r22, qx, qy, qz,
         vstart, verts, fstart, faces, brad, tol)
     d1, d2 = -t1, -t2
@@ -1105,7 +689,7 @@ def _polytope3(sa, a, sb, b, sx, sy, sz, pos, rot, geo):
         fb0, nfb = fstart[sb], fstart[sb + 1] - fstart[sb]
         ga1, ga2, fb1, fb2 = _crease_rows(k10, k11, k12, k13, nfb, fb0, fa0)
         fb3, fb4, ga3, ga4 = _crease_rows(k20, k21, k22, k23, nfa, fa0, fb0)
-        kind, ov, mx, my, mz, cx, cy, cz = _edge_contact3(
+        kind, ov, mx, my, mz, cx, cy, cz = sat_contact3(
             sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz,
             qx, qy, qz, vstart, verts, fstart, faces, brad, ga1, ga2, fb1, fb2, ga3, ga4,
             fb3, fb4)
@@ -1123,28 +707,37 @@ def _polytope3(sa, a, sb, b, sx, sy, sz, pos, rot, geo):
         else:
             d2, x2, y2, z2, m2x, m2y, m2z = ov, cx, cy, cz, mx, my, mz
     if use1:
-        x1, y1, z1 = _contact_point3(sb, scb, sa, sca, r00, r01, r02, r10, r11, r12, r20,
-                                     r21, r22, px, py, pz, x1, y1, z1, m1x, m1y, m1z, d1,
-                                     vstart, verts, fstart, faces)
+        ov, h = d1, -0.5 * d1
         nx = -(b00 * m1x + b01 * m1y + b02 * m1z)  # -(B's normal)
         ny = -(b10 * m1x + b11 * m1y + b12 * m1z)
         nz = -(b20 * m1x + b21 * m1y + b22 * m1z)
         wx = b00 * x1 + b01 * y1 + b02 * z1 + pos[b, 0] + sx
         wy = b10 * x1 + b11 * y1 + b12 * z1 + pos[b, 1] + sy
         wz = b20 * x1 + b21 * y1 + b22 * z1 + pos[b, 2] + sz
-        h = -0.5 * d1
-        return d1, nx, ny, nz, wx + h * nx, wy + h * ny, wz + h * nz, i1 + i2
-    x2, y2, z2 = _contact_point3(sa, sca, sb, scb, r00, r10, r20, r01, r11, r21, r02, r12,
-                                 r22, qx, qy, qz, x2, y2, z2, m2x, m2y, m2z, d2, vstart,
-                                 verts, fstart, faces)
-    nx = a00 * m2x + a01 * m2y + a02 * m2z  # A's normal
-    ny = a10 * m2x + a11 * m2y + a12 * m2z
-    nz = a20 * m2x + a21 * m2y + a22 * m2z
-    wx = a00 * x2 + a01 * y2 + a02 * z2 + pos[a, 0]
-    wy = a10 * x2 + a11 * y2 + a12 * z2 + pos[a, 1]
-    wz = a20 * x2 + a21 * y2 + a22 * z2 + pos[a, 2]
-    h = 0.5 * d2
-    return d2, nx, ny, nz, wx + h * nx, wy + h * ny, wz + h * nz, i1 + i2
+    else:
+        ov, h = d2, 0.5 * d2
+        nx = a00 * m2x + a01 * m2y + a02 * m2z  # A's normal
+        ny = a10 * m2x + a11 * m2y + a12 * m2z
+        nz = a20 * m2x + a21 * m2y + a22 * m2z
+        wx = a00 * x2 + a01 * y2 + a02 * z2 + pos[a, 0]
+        wy = a10 * x2 + a11 * y2 + a12 * z2 + pos[a, 1]
+        wz = a20 * x2 + a21 * y2 + a22 * z2 + pos[a, 2]
+    # a vertex on a face: the point moves to the depth-weighted mean of the searched
+    # body's vertices inside the other, at the deepest point's level along n (none
+    # inside: a face won the separating-axis test with a vertex outside; keep it)
+    sw = s1 if use1 else s2
+    if sw > 0.0:
+        if use1:
+            ex = (b00 * s1x + b01 * s1y + b02 * s1z) / sw + pos[b, 0] + sx - wx
+            ey = (b10 * s1x + b11 * s1y + b12 * s1z) / sw + pos[b, 1] + sy - wy
+            ez = (b20 * s1x + b21 * s1y + b22 * s1z) / sw + pos[b, 2] + sz - wz
+        else:
+            ex = (a00 * s2x + a01 * s2y + a02 * s2z) / sw + pos[a, 0] - wx
+            ey = (a10 * s2x + a11 * s2y + a12 * s2z) / sw + pos[a, 1] - wy
+            ez = (a20 * s2x + a21 * s2y + a22 * s2z) / sw + pos[a, 2] - wz
+        e = ex * nx + ey * ny + ez * nz
+        wx, wy, wz = wx + ex - e * nx, wy + ey - e * ny, wz + ez - e * nz
+    return ov, nx, ny, nz, wx + h * nx, wy + h * ny, wz + h * nz, i1 + i2
 
 
 # --------------------------------------------------------------------------- public

@@ -53,6 +53,11 @@ def _parser():
     run.add_argument("file", type=Path, help="the problem file (TOML)")
     run.add_argument("--dry-run", action="store_true",
                      help="validate and build the macro problem, then stop")
+    run.add_argument("--restart", action="store_true",
+                     help="continue from the output directory's checkpoint.h5")
+    run.add_argument("--stop-after", type=int, metavar="STEP",
+                     help="stop after this load step, writing a checkpoint (to split "
+                          "a long run into jobs)")
     run.set_defaults(func=_cmd_run)
     rve = sub.add_parser("rve", parents=[common], help="run a standalone RVE test",
                          description="Consolidate a periodic packing, then compress it "
@@ -123,18 +128,32 @@ def _solve(problem, args, prog):
     from dem.simulation import SimulationError
 
     from .coupling import SolverError
+    from .farm import mpi_world
     from .run import run_problem
 
     stem = Path(problem["source"]).stem if not problem["source"].startswith("<") \
         else "demo"
     directory = args.output or Path(problem["output"]["dir"] or f"output/{stem}")
+    _, comm = mpi_world()
+    if comm is not None:
+        _share_cores(comm.Get_size())
     try:
         summary = run_problem(problem, directory, overwrite=args.overwrite,
-                              progress=False if args.no_progress else None, echo=print)
-    except (SceneError, FileExistsError) as err:
+                              progress=False if args.no_progress else None, echo=print,
+                              restart=getattr(args, "restart", False),
+                              stop_after=getattr(args, "stop_after", None))
+    except (SceneError, FileExistsError, FileNotFoundError, ValueError) as err:
         return _error(prog, err, EXIT_USAGE)
     except (SolverError, SimulationError) as err:
         return _error(prog, err, EXIT_FAILED)
+    except Exception as err:
+        if comm is None:
+            raise
+        # a bug on one rank must not leave the others waiting: end the whole job
+        _error(prog, f"rank {comm.Get_rank()}: {type(err).__name__}: {err}", EXIT_FAILED)
+        comm.Abort(EXIT_FAILED)
+    if summary is None:  # a worker rank: rank 0 reports
+        return EXIT_OK
     its = summary["iterations"]
     print(f"{summary['steps']} load steps, {sum(its)} Newton iterations "
           f"({min(its)}-{max(its)} per step), {summary['cuts']} step cuts, "
@@ -148,6 +167,18 @@ def _solve(problem, args, prog):
         if Path(f).exists():
             print(f"  {f}")
     return EXIT_OK
+
+
+def _share_cores(n_ranks):
+    """Numba threads per rank that leave the cores not oversubscribed, unless
+    ``NUMBA_NUM_THREADS`` was set for the ranks."""
+    import os
+
+    import numba
+
+    if "NUMBA_NUM_THREADS" not in os.environ:
+        numba.set_num_threads(max(1, min(numba.config.NUMBA_NUM_THREADS,
+                                         (os.cpu_count() or 1) // n_ranks)))
 
 
 def _cmd_rve(args):

@@ -22,6 +22,21 @@ import time
 import numpy as np
 
 
+def mpi_world():
+    """``(MPI, COMM_WORLD)`` when this process runs under ``mpiexec`` with more than one
+    rank, else ``(None, None)``. The only place mpi4py is imported, and only here: a
+    serial run never loads MPI."""
+    import os
+
+    if not any(k in os.environ for k in ("PMI_RANK", "PMI_SIZE", "OMPI_COMM_WORLD_SIZE",
+                                         "MPI_LOCALNRANKS", "PMIX_RANK")):
+        return None, None
+    from mpi4py import MPI
+
+    comm = MPI.COMM_WORLD
+    return (MPI, comm) if comm.Get_size() > 1 else (None, None)
+
+
 class MicroFailure(RuntimeError):
     """A micro model failed; ``point`` is its Gauss point index."""
 
@@ -82,3 +97,252 @@ class SerialFarm:
     def stress(self):
         """Committed stresses (n, d, d) [Pa]."""
         return np.array([m.stress for m in self.models])
+
+    def export(self):
+        """Every point's committed state, ``{g: {name: array}}`` (for checkpoints)."""
+        return {g: m.export() for g, m in enumerate(self.models)}
+
+    def load(self, read):
+        """Set every point's committed state from ``read(g) -> {name: array}``."""
+        for g, m in enumerate(self.models):
+            m.load(read(g))
+
+
+class MPIFarm:
+    """The Gauss points spread over the ranks of ``comm`` in contiguous blocks.
+
+    Every rank builds the farm; rank 0 then calls :meth:`trial`, :meth:`commit`,
+    :meth:`rollback`, :meth:`measures`, :meth:`stress` exactly as on a
+    :class:`SerialFarm`, and :meth:`close` at the end, while the other ranks sit in
+    :meth:`serve`. Per call, rank 0 broadcasts a command; strain increments go out by
+    ``Scatterv`` and stresses, tangents and costs come back by ``Gatherv``, as float64
+    buffers. A micro model's exception is caught on its rank and reported to rank 0
+    with the Gauss point's id (a :class:`MicroFailure`), so no rank is ever left
+    waiting. At each commit, ownership is rebalanced from the measured cost of the
+    last trial: points change rank with their committed state (``export``/``load``),
+    never inside a load step. Results are bit for bit those of a serial farm.
+
+    Parameters
+    ----------
+    comm : mpi4py communicator
+    n, dim : int
+        Gauss points and dimension.
+    factory : callable
+        ``factory(g)`` builds point ``g``'s micro model in its initial state (on the
+        rank that owns it).
+    """
+
+    #: rebalance when the largest rank's cost exceeds the mean by this factor
+    IMBALANCE = 1.1
+
+    def __init__(self, comm, n, dim, factory):
+        self.comm = comm
+        self.rank, self.size = comm.Get_rank(), comm.Get_size()
+        self.n, self.dim = int(n), int(dim)
+        self.factory = factory
+        self.bounds = np.round(np.linspace(0, self.n, self.size + 1)).astype(np.int64)
+        lo, hi = self.bounds[self.rank], self.bounds[self.rank + 1]
+        self.models = {g: factory(g) for g in range(lo, hi)}
+        self.cost = np.zeros(self.n)
+        self.steps = np.zeros(self.n, np.int64)
+        self.n_trials = 0
+        self.n_migrated = 0  # points moved between ranks so far
+        self._open = True
+
+    # ------------------------------------------------------------------ rank 0
+    def trial(self, deps):
+        deps = np.ascontiguousarray(deps, dtype=np.float64)
+        if deps.shape != (self.n, self.dim, self.dim):
+            raise ValueError(f"strain increments must be ({self.n}, {self.dim}, "
+                             f"{self.dim}), got {deps.shape}")
+        self.comm.bcast("trial", root=0)
+        return self._trial(deps)
+
+    def commit(self):
+        self.comm.bcast("commit", root=0)
+        self._commit()
+
+    def rollback(self):
+        self.comm.bcast("rollback", root=0)
+        self._rollback()
+
+    def measures(self):
+        self.comm.bcast("measures", root=0)
+        return self._measures()
+
+    def stress(self):
+        self.comm.bcast("stress", root=0)
+        return self._stress()
+
+    def export(self):
+        """Every point's committed state on rank 0, ``{g: {name: array}}``."""
+        self.comm.bcast("export", root=0)
+        return self._export()
+
+    def load(self, read):
+        """Set the committed state of this rank's points from ``read(g)``; every rank
+        calls it (each reads its own points), before rank 0 starts driving."""
+        for g, m in self.models.items():
+            m.load(read(g))
+
+    def close(self):
+        """Release the other ranks from :meth:`serve` (rank 0; idempotent)."""
+        if self._open and self.rank == 0:
+            self.comm.bcast("stop", root=0)
+        self._open = False
+
+    # ------------------------------------------------------------------ other ranks
+    def serve(self):
+        """Answer rank 0's commands until it closes the farm."""
+        while True:
+            cmd = self.comm.bcast(None, root=0)
+            if cmd == "stop":
+                self._open = False
+                return
+            if cmd == "trial":
+                self._trial(None)
+            elif cmd == "commit":
+                self._commit()
+            elif cmd == "rollback":
+                self._rollback()
+            elif cmd == "measures":
+                self._measures()
+            elif cmd == "stress":
+                self._stress()
+            elif cmd == "export":
+                self._export()
+
+    # ------------------------------------------------------------------ collectives
+    def _mine(self):
+        return range(self.bounds[self.rank], self.bounds[self.rank + 1])
+
+    def _counts(self, per_point):
+        c = np.diff(self.bounds) * per_point
+        return c, np.concatenate([[0], np.cumsum(c)[:-1]])
+
+    def _scatter(self, full, per_point):
+        from mpi4py import MPI  # the farm exists only under MPI
+
+        own = np.empty(len(self._mine()) * per_point)
+        counts, displs = self._counts(per_point)
+        send = [full, counts, displs, MPI.DOUBLE] if self.rank == 0 else None
+        self.comm.Scatterv(send, own, root=0)
+        return own
+
+    def _gather(self, own, per_point):
+        from mpi4py import MPI
+
+        counts, displs = self._counts(per_point)
+        full = np.empty(self.n * per_point) if self.rank == 0 else None
+        recv = [full, counts, displs, MPI.DOUBLE] if self.rank == 0 else None
+        self.comm.Gatherv(np.ascontiguousarray(own, dtype=np.float64), recv, root=0)
+        return full
+
+    def _trial(self, deps):
+        d = self.dim
+        dd, d4 = d * d, d ** 4
+        mine = self._mine()
+        own = self._scatter(deps.ravel() if deps is not None else None, dd)
+        own = own.reshape(len(mine), d, d)
+        sig = np.zeros((len(mine), dd))
+        c = np.zeros((len(mine), d4))
+        cost = np.zeros((len(mine), 2))
+        failure = None
+        for k, g in enumerate(mine):
+            t0 = time.perf_counter()
+            try:
+                s, t = self.models[g].trial(own[k])
+            except Exception as err:  # noqa: BLE001 - reported with the point's id
+                failure = (g, f"{type(err).__name__}: {err}")
+                break
+            sig[k], c[k] = s.ravel(), t.ravel()
+            cost[k] = time.perf_counter() - t0, getattr(self.models[g], "steps", 0)
+        failures = self.comm.gather(failure, root=0)
+        sig = self._gather(sig, dd)
+        c = self._gather(c, d4)
+        cost = self._gather(cost, 2)
+        if self.rank != 0:
+            return None
+        self.n_trials += 1
+        cost = cost.reshape(self.n, 2)
+        self.cost[:] = cost[:, 0]
+        self.steps[:] = cost[:, 1]
+        bad = [f for f in failures if f is not None]
+        if bad:
+            g, msg = min(bad)
+            raise MicroFailure(g, msg)
+        return sig.reshape(self.n, d, d), c.reshape(self.n, d, d, d, d)
+
+    def _commit(self):
+        for m in self.models.values():
+            m.commit()
+        self._rebalance()
+
+    def _rollback(self):
+        for m in self.models.values():
+            m.rollback()
+
+    def _measures(self):
+        mine = list(self._mine())
+        rows = [self.models[g].measures() for g in mine]
+        keys = ("void_ratio", "coordination", "ran_dem")
+        own = np.array([[r[k] for k in keys] for r in rows]).reshape(len(mine), 3)
+        full = self._gather(own, 3)
+        if self.rank != 0:
+            return None
+        full = full.reshape(self.n, 3)
+        out = {k: full[:, i] for i, k in enumerate(keys)}
+        out["cost"] = self.cost.copy()
+        out["steps"] = self.steps.copy()
+        return out
+
+    def _stress(self):
+        d = self.dim
+        mine = list(self._mine())
+        own = np.array([np.asarray(self.models[g].stress).ravel() for g in mine])
+        full = self._gather(own.reshape(len(mine), d * d), d * d)
+        return None if self.rank != 0 else full.reshape(self.n, d, d)
+
+    def _export(self):
+        parts = self.comm.gather({g: m.export() for g, m in self.models.items()}, root=0)
+        if self.rank != 0:
+            return None
+        return {g: st for part in parts for g, st in part.items()}
+
+    def _rebalance(self):
+        """New contiguous blocks of equal measured cost; points move with their
+        committed state."""
+        new = None
+        if self.rank == 0:
+            cost = np.maximum(self.cost, 1e-6)  # an elastic point still costs a little
+            cum = np.concatenate([[0.0], np.cumsum(cost)])
+            per_rank = np.diff(cum[self.bounds])
+            if self.n >= self.size and per_rank.max() > self.IMBALANCE * per_rank.mean():
+                cuts = np.searchsorted(cum, cum[-1] * np.arange(1, self.size) / self.size)
+                new = np.concatenate([[0], np.clip(cuts, 0, self.n), [self.n]])
+                new = new.astype(np.int64)
+                for k in range(1, self.size):  # every rank keeps at least one point
+                    new[k] = min(max(new[k], new[k - 1] + 1), self.n - (self.size - k))
+                if np.array_equal(new, self.bounds):
+                    new = None
+        new = self.comm.bcast(new, root=0)
+        if new is None:
+            return
+        old = self.bounds
+        owner_old = np.repeat(np.arange(self.size), np.diff(old))
+        owner_new = np.repeat(np.arange(self.size), np.diff(new))
+        requests = []
+        for g in list(self.models):
+            dest = owner_new[g]
+            if dest != self.rank:
+                requests.append(self.comm.isend(self.models.pop(g).export(), dest=dest,
+                                                tag=g))
+        for g in range(new[self.rank], new[self.rank + 1]):
+            if owner_old[g] != self.rank:
+                m = self.factory(g)
+                m.load(self.comm.recv(source=owner_old[g], tag=g))
+                self.models[g] = m
+        for r in requests:
+            r.wait()
+        self.n_migrated += int(np.count_nonzero(owner_old != owner_new))
+        self.bounds = new

@@ -62,10 +62,14 @@ class Output:
         Steps between field frames (the curve gets every step).
     overwrite : bool
         Replace an existing ``fields.h5``; otherwise refuse (FileExistsError).
+    driven : sequence of (boundary, component)
+        The curves of ``load_displacement.png``.
+    restart : (step, curve), optional
+        Continue the existing file from a checkpoint's step and curve.
     """
 
     def __init__(self, directory, macro, boundaries, every=1, overwrite=False,
-                 driven=()):
+                 driven=(), restart=None):
         self.dir = Path(directory)
         self.macro = macro
         self.boundaries = tuple(boundaries)
@@ -74,6 +78,14 @@ class Output:
         self.driven = tuple(driven)
         self.every = int(every)
         self.path = self.dir / "fields.h5"
+        self.frames = []  # (group name, load factor)
+        self.curve = {"load_factor": [], "iterations": [], "dem_points": []}
+        for b in self.boundaries:
+            self.curve[f"displacement/{b}"] = []
+            self.curve[f"force/{b}"] = []
+        if restart is not None:
+            self._reopen(*restart)
+            return
         if self.path.exists() and not overwrite:
             raise FileExistsError(f"{self.path} exists (pass --overwrite to replace it)")
         self.dir.mkdir(parents=True, exist_ok=True)
@@ -88,11 +100,22 @@ class Output:
         self.f.create_dataset("mesh/cells", data=cells)
         self.f.create_dataset("gauss/points", data=macro.gauss_points())
         self.f.create_dataset("gauss/weights", data=macro.weights())
-        self.frames = []  # (group name, load factor)
-        self.curve = {"load_factor": [], "iterations": [], "dem_points": []}
-        for b in self.boundaries:
-            self.curve[f"displacement/{b}"] = []
-            self.curve[f"force/{b}"] = []
+
+    def _reopen(self, step, curve):
+        """Continue the file of an interrupted run from its checkpoint at ``step``:
+        frames written after it are dropped, the curve is the checkpoint's."""
+        if not self.path.exists():
+            raise FileNotFoundError(f"{self.path} is missing: cannot restart its run")
+        self.f = h5py.File(self.path, "a")
+        for name in list(self.f["steps"]):
+            if int(name) > step:
+                del self.f["steps"][name]
+        if "curve" in self.f:
+            del self.f["curve"]
+        self.frames = [(f"steps/{name}", float(self.f["steps"][name].attrs["load_factor"]))
+                       for name in sorted(self.f["steps"])]
+        for k in self.curve:
+            self.curve[k] = list(curve[k])
 
     def write(self, step, solver, measures, iterations, force_frame=False):
         """Record step ``step`` of ``solver`` (committed state) and ``measures`` (the

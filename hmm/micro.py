@@ -66,6 +66,15 @@ class MicroModel:
         return {"void_ratio": math.nan, "coordination": math.nan,
                 "ran_dem": float(self.ran_dem)}
 
+    def export(self):
+        """The committed state as a flat dict of arrays (to move a point to another
+        rank or into a checkpoint); :meth:`load` sets it on a model built the same
+        way."""
+        raise NotImplementedError
+
+    def load(self, state):
+        raise NotImplementedError
+
 
 class LinearElastic(MicroModel):
     """Isotropic linear elasticity (plane strain in 2D) about an initial stress.
@@ -104,6 +113,13 @@ class LinearElastic(MicroModel):
         self.stress = self._trial.copy()
 
     def rollback(self):
+        self._trial = self.stress.copy()
+
+    def export(self):
+        return {"stress": self.stress.copy()}
+
+    def load(self, state):
+        self.stress = np.array(state["stress"], dtype=np.float64)
         self._trial = self.stress.copy()
 
 
@@ -164,6 +180,13 @@ class Hyperbolic(MicroModel):
     def rollback(self):
         self._trial_strain = self.strain.copy()
 
+    def export(self):
+        return {"strain": self.strain.copy()}
+
+    def load(self, state):
+        self.strain = np.array(state["strain"], dtype=np.float64)
+        self._trial_strain = self.strain.copy()
+
     @property
     def stress(self):
         return self.response(self.strain)[0]
@@ -217,6 +240,21 @@ class DEMMicroModel(MicroModel):
         if self._moved:
             self.rve.restore(self._committed)
             self._moved = False
+        self._trial_stress = self.stress
+
+    def export(self):
+        if self._moved:
+            self.rollback()
+        out = {"rve/" + k: v.copy() for k, v in self._committed.items()}
+        out["stress"] = np.array(self.stress, dtype=np.float64)
+        return out
+
+    def load(self, state):
+        snap = {k[4:]: np.asarray(v) for k, v in state.items() if k.startswith("rve/")}
+        self.rve.restore(snap)
+        self._committed = self.rve.snapshot()
+        self._moved = False
+        self.stress = np.array(state["stress"], dtype=np.float64)
         self._trial_stress = self.stress
 
     def elastic_tangent(self):
@@ -305,6 +343,21 @@ class Adaptive(MicroModel):
 
     def rollback(self):
         self.dem.rollback()
+        self._trial_stress = self.stress
+        self._trial_active = False
+
+    def export(self):
+        out = {"dem/" + k: v for k, v in self.dem.export().items()}
+        out.update(pending=self.pending.copy(), active=np.array(self.active),
+                   c_elastic=self.c_elastic.copy(), stress=np.array(self.stress))
+        return out
+
+    def load(self, state):
+        self.dem.load({k[4:]: v for k, v in state.items() if k.startswith("dem/")})
+        self.pending = np.array(state["pending"], dtype=np.float64)
+        self.active = bool(state["active"])
+        self.c_elastic = np.array(state["c_elastic"], dtype=np.float64)
+        self.stress = np.array(state["stress"], dtype=np.float64)
         self._trial_stress = self.stress
         self._trial_active = False
 

@@ -43,6 +43,7 @@ Layout (SI units; ``d`` is ``[mesh] dim``)::
     [output]
     dir = "output/problem"         # default output/<file stem>
     every = 1                      # load steps between field frames
+    checkpoint_every = 0           # load steps between checkpoints (0: none)
 
 Any problem is a :class:`~dem.io.scene.SceneError` whose message is one line naming
 the file and the key. :func:`schema_markdown` gives the reference of every key.
@@ -162,6 +163,8 @@ SCHEMA = {
         "dir": Key("str", doc="Output directory; default output/<file stem>."),
         "every": Key("int", default=1, range=Range(1.0),
                      doc="Load steps between field frames."),
+        "checkpoint_every": Key("int", default=0, range=NONNEGATIVE,
+                                doc="Load steps between checkpoints (0: none)."),
     }),
 }
 
@@ -277,37 +280,49 @@ def build_loads(problem, macro):
 
 
 def build_farm(problem, macro, progress=None):
-    """The micro model of every Gauss point, in a :class:`~hmm.farm.SerialFarm`.
+    """The micro model of every Gauss point in a farm: a :class:`~hmm.farm.MPIFarm`
+    when this process is one of several MPI ranks (every rank must call this), else a
+    :class:`~hmm.farm.SerialFarm`.
 
-    DEM points share packings: each distinct packing is generated (or read) once
-    and copied into every point that uses it.
+    DEM points share packings: each distinct packing is generated (or read) once per
+    rank and copied into every point that uses it.
     """
-    from .farm import SerialFarm
+    from .farm import MPIFarm, SerialFarm, mpi_world
 
-    return SerialFarm(build_models(problem, macro.n_gp, macro.dim, progress))
+    factory = model_factory(problem, macro.dim, progress)
+    _, comm = mpi_world()
+    if comm is not None:
+        return MPIFarm(comm, macro.n_gp, macro.dim, factory)
+    return SerialFarm([factory(g) for g in range(macro.n_gp)])
 
 
 def build_models(problem, n, dim, progress=None):
     """The ``n`` micro models of a validated problem."""
+    factory = model_factory(problem, dim, progress)
+    return [factory(g) for g in range(n)]
+
+
+def model_factory(problem, dim, progress=None):
+    """``factory(g)``: a fresh micro model for Gauss point ``g`` in its initial state.
+    DEM packings are made once, here, and copied by every call."""
     from .micro import Adaptive, DEMMicroModel, Hyperbolic, LinearElastic
 
     mc = problem["micro"]
     kind = mc["model"]
     if kind == "linear_elastic":
-        return [LinearElastic(mc["young"], mc["poisson"], dim, mc["stress0"])
-                for _ in range(n)]
+        return lambda g: LinearElastic(mc["young"], mc["poisson"], dim, mc["stress0"])
     if kind == "hyperbolic":
-        return [Hyperbolic(mc["young"], mc["poisson"], mc["gamma_ref"], dim,
-                           mc["stress0"]) for _ in range(n)]
+        return lambda g: Hyperbolic(mc["young"], mc["poisson"], mc["gamma_ref"], dim,
+                                    mc["stress0"])
     packings = [_packing(problem, k, dim, progress) for k in range(mc["packings"])]
-    models = []
-    for g in range(n):
-        rve = clone_rve(packings[g % len(packings)])
-        m = DEMMicroModel(rve, tangent=mc["tangent"])
+
+    def factory(g):
+        m = DEMMicroModel(clone_rve(packings[g % len(packings)]), tangent=mc["tangent"])
         if kind == "adaptive":
             m = Adaptive(m, mc["strain_threshold"], mc["ratio_threshold"])
-        models.append(m)
-    return models
+        return m
+
+    return factory
 
 
 def _packing(problem, k, dim, progress):

@@ -8,12 +8,16 @@ RVE of 60 disks), confined at 100 kPa and shortened by 1 % in 8 load steps.
 
 import logging
 import time
+from pathlib import Path
 
 import numpy as np
 
 from dem.simulation import _progress
 
+from .checkpoint import Checkpoint
+from .checkpoint import save as save_checkpoint
 from .coupling import Solver, SolverSettings
+from .farm import mpi_world
 from .io import Output
 from .problem import build_farm, build_loads, build_macro, validate_problem
 
@@ -37,63 +41,122 @@ DEMO = {
 }
 
 
-def run_problem(problem, directory, overwrite=False, progress=None, echo=None):
+def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
+                restart=False, stop_after=None):
     """Solve a validated problem, writing into ``directory``.
 
-    ``echo(line)`` receives a few lines of narrative (set-up, timing). Returns a dict
-    summary: steps, iterations, cuts, wall time, final load factor, output files.
+    Under ``mpiexec`` with several ranks every rank calls this: rank 0 solves and
+    writes, the others run their share of the Gauss points and return None.
+    ``echo(line)`` receives a few lines of narrative (set-up, timing).
+    ``restart`` continues from ``directory/checkpoint.h5`` (see
+    :mod:`hmm.checkpoint`); ``stop_after`` ends the run after that load step (a
+    checkpoint is written there), to split a long run into jobs. Returns (on rank 0)
+    a dict summary: steps, iterations, cuts, wall time, final load factor,
+    reactions, output files.
     """
-    say = echo or (lambda line: None)
+    _, comm = mpi_world()
+    rank = 0 if comm is None else comm.Get_rank()
+    say = (echo if rank == 0 else None) or (lambda line: None)
     t0 = time.perf_counter()
     macro = build_macro(problem)
     supports, f_const, f_ramp = build_loads(problem, macro)
     say(f"mesh: {macro.n_elems} {macro.element} elements, {macro.n_dofs} dofs, "
-        f"{macro.n_gp} Gauss points")
+        f"{macro.n_gp} Gauss points" + (f", {comm.Get_size()} MPI ranks" if comm else ""))
     driven = [(c["boundary"], "xyz".index(c["component"])) for c in problem["dirichlet"]
               if c["value"] != 0.0]
-    out = Output(directory, macro, supports.boundaries, problem["output"]["every"],
-                 overwrite=overwrite, driven=driven)
+    ck = None
+    out, refused = None, None
+    try:  # every rank opens the checkpoint: each reads its own points from it
+        if restart:
+            ck = Checkpoint(Path(directory) / "checkpoint.h5", problem)
+        if rank == 0:
+            out = Output(directory, macro, supports.boundaries, problem["output"]["every"],
+                         overwrite=overwrite, driven=driven,
+                         restart=(ck.step, ck.curve()) if ck is not None else None)
+    except (FileExistsError, FileNotFoundError, ValueError) as err:
+        refused = err
+    if comm is not None:
+        refused = comm.allgather(refused)
+        refused = next((e for e in refused if e is not None), None)
+    if refused is not None:
+        if ck is not None:
+            ck.close()
+        raise refused
     try:
         farm = build_farm(problem, macro)
-        say(f"micro models ready ({problem['micro']['model']}) in "
-            f"{time.perf_counter() - t0:.1f} s")
-        st = problem["solver"]
-        settings = SolverSettings(st["tol_residual"], st["tol_displacement"],
-                                  st["max_iterations"], st["min_step"])
-        solver = Solver(macro, farm, supports, f_const, f_ramp, settings)
-        n = problem["load"]["steps"]
-        out.write(0, solver, farm.measures(), 0, force_frame=True)
-        bar = _progress(n, progress)
-        t1 = time.perf_counter()
-        try:
-            for k in range(1, n + 1):
-                state = {}
-
-                def show(it, r, d, state=state):
-                    state.update(it=it, r=r)
-                    if bar is not None:
-                        bar.set_postfix_str(f"Newton {it}: |r|/|f| = {r:.1e}")
-
-                its = solver.advance(1.0 / n, on_iteration=show)
-                out.write(k, solver, farm.measures(), its, force_frame=(k == n))
-                if bar is not None:
-                    bar.update(1)
-        finally:
-            if bar is not None:
-                bar.close()
-        solve_time = time.perf_counter() - t1
+        if ck is not None:
+            farm.load(ck.micro_state)
+    except BaseException:
+        if out is not None:
+            out.close()
+        raise
     finally:
+        if ck is not None and rank != 0:
+            ck.close()
+    if rank != 0:
+        farm.serve()
+        return None
+    try:
+        summary = _solve(problem, macro, farm, supports, f_const, f_ramp, out, progress,
+                         say, t0, ck, stop_after)
+    finally:
+        if comm is not None:
+            farm.close()
         out.close()
-    m = farm.measures()
-    summary = {"steps": n, "iterations": list(solver.iterations), "cuts": solver.cuts,
-               "trials": farm.n_trials, "solve_time": solve_time,
-               "total_time": time.perf_counter() - t0, "load_factor": solver.t,
-               "dem_points": int(np.sum(m["ran_dem"] > 0)), "gauss_points": macro.n_gp,
-               "reactions": {k: v.tolist() for k, v in solver.reactions().items()},
-               "files": [str(out.dir / f) for f in ("fields.h5", "fields.xdmf",
-                                                     "load_displacement.png",
-                                                     "deviatoric_strain.png")]}
+        if ck is not None:
+            ck.close()
     return summary
+
+
+def _solve(problem, macro, farm, supports, f_const, f_ramp, out, progress, say, t0,
+           ck, stop_after):
+    say(f"micro models ready ({problem['micro']['model']}) in "
+        f"{time.perf_counter() - t0:.1f} s")
+    st = problem["solver"]
+    settings = SolverSettings(st["tol_residual"], st["tol_displacement"],
+                              st["max_iterations"], st["min_step"])
+    solver = Solver(macro, farm, supports, f_const, f_ramp, settings)
+    n = problem["load"]["steps"]
+    first = 1
+    if ck is None:
+        out.write(0, solver, farm.measures(), 0, force_frame=True)
+    else:
+        ck.restore_solver(solver)
+        first = ck.step + 1
+        say(f"restarted from the checkpoint of step {ck.step}")
+    every_ck = problem["output"]["checkpoint_every"]
+    last = n if stop_after is None else min(n, int(stop_after))
+    bar = _progress(last - first + 1, progress)
+    t1 = time.perf_counter()
+    try:
+        for k in range(first, last + 1):
+
+            def show(it, r, d):
+                if bar is not None:
+                    bar.set_postfix_str(f"Newton {it}: |r|/|f| = {r:.1e}")
+
+            its = solver.advance(k / n - solver.t, on_iteration=show)
+            out.write(k, solver, farm.measures(), its, force_frame=(k == n))
+            if (every_ck and k % every_ck == 0) or k == last < n:
+                save_checkpoint(out.dir / "checkpoint.h5", problem, k, solver, out.curve,
+                                farm.export())
+            if bar is not None:
+                bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
+    solve_time = time.perf_counter() - t1
+    m = farm.measures()
+    return {"steps": last, "iterations": list(solver.iterations), "cuts": solver.cuts,
+            "trials": farm.n_trials, "solve_time": solve_time,
+            "total_time": time.perf_counter() - t0, "load_factor": solver.t,
+            "dem_points": int(np.sum(m["ran_dem"] > 0)), "gauss_points": macro.n_gp,
+            "reactions": {k: v.tolist() for k, v in solver.reactions().items()},
+            "u": solver.u.copy(), "sigma": solver.sigma.copy(),
+            "migrated": getattr(farm, "n_migrated", 0),
+            "files": [str(out.dir / f) for f in ("fields.h5", "fields.xdmf",
+                                                 "load_displacement.png",
+                                                 "deviatoric_strain.png")]}
 
 
 def demo_problem():

@@ -1,0 +1,129 @@
+"""The MPI farm under ``mpiexec -n 2`` (``make test-mpi``): bit-for-bit equality with the
+serial farm, restart equality, and a failing Gauss point on rank 1 that ends the run
+with its id instead of a hang.
+
+Every rank runs each test; outcomes are broadcast from rank 0 so all ranks pass or fail
+together and none is left waiting in a collective.
+"""
+
+import copy
+
+import numpy as np
+import pytest
+
+MPI = pytest.importorskip("mpi4py.MPI")
+
+from hmm.coupling import Solver, SolverSettings
+from hmm.farm import MPIFarm, SerialFarm
+from hmm.micro import LinearElastic
+from hmm.problem import build_loads, build_macro, model_factory, validate_problem
+from hmm.run import DEMO, run_problem
+
+pytestmark = pytest.mark.mpi
+COMM = MPI.COMM_WORLD
+
+
+def _small_demo(steps=3):
+    prob = copy.deepcopy(DEMO)
+    prob["mesh"]["cells"] = [1, 2]
+    prob["micro"]["count"] = 30
+    prob["load"]["steps"] = steps
+    prob["dirichlet"][2]["value"] = -0.0001 * steps
+    return validate_problem(prob)
+
+
+def _all_ranks_agree(ok, message=""):
+    ok, message = COMM.bcast((ok, message), root=0)
+    assert ok, message
+
+
+def _solve(problem, farm, steps):
+    macro = build_macro(problem)
+    sup, fc, fr = build_loads(problem, macro)
+    solver = Solver(macro, farm, sup, fc, fr, SolverSettings(5e-3, 5e-3, 10))
+    for k in range(1, steps + 1):
+        solver.advance(k / steps - solver.t)
+    return solver
+
+
+def test_mpi_farm_equals_the_serial_farm_bit_for_bit():
+    problem = _small_demo()
+    macro = build_macro(problem)
+    factory = model_factory(problem, macro.dim)
+    farm = MPIFarm(COMM, macro.n_gp, macro.dim, factory)
+    farm.IMBALANCE = 1.0  # rebalance at every commit: points migrate
+    if COMM.rank == 0:
+        try:
+            par = _solve(problem, farm, 3)
+        finally:
+            farm.close()
+        migrated = farm.n_migrated
+        ser = _solve(problem, SerialFarm([factory(g) for g in range(macro.n_gp)]), 3)
+        same = (np.array_equal(par.u, ser.u) and np.array_equal(par.sigma, ser.sigma)
+                and par.iterations == ser.iterations)
+        _all_ranks_agree(same and migrated > 0,
+                         f"u equal {np.array_equal(par.u, ser.u)}, migrated {migrated}")
+    else:
+        farm.serve()
+        _all_ranks_agree(None)
+
+
+def test_restart_on_two_ranks_repeats_the_run(tmp_path_factory):
+    base = COMM.bcast(str(tmp_path_factory.mktemp("restart")) if COMM.rank == 0 else None)
+    problem = _small_demo(steps=4)
+    problem["output"]["checkpoint_every"] = 2
+    full = run_problem(problem, f"{base}/full", progress=False)
+    run_problem(problem, f"{base}/cut", progress=False, stop_after=1)
+    again = run_problem(problem, f"{base}/cut", progress=False, restart=True)
+    if COMM.rank == 0:
+        _all_ranks_agree(np.array_equal(full["u"], again["u"])
+                         and np.array_equal(full["sigma"], again["sigma"]),
+                         "restarted run differs")
+    else:
+        assert full is None and again is None
+        _all_ranks_agree(None)
+
+
+class _FailsOnRankOne(LinearElastic):
+    def trial(self, deps):
+        raise RuntimeError("injected failure")
+
+
+def test_a_failing_point_on_rank_one_ends_the_run_with_its_id():
+    problem = validate_problem({"mesh": {"size": [1.0, 1.0], "cells": [2, 1]},
+                                "dirichlet": [{"boundary": "bottom", "component": "y"},
+                                              {"boundary": "left", "component": "x"},
+                                              {"boundary": "top", "component": "y",
+                                               "value": -0.01}],
+                                "micro": {"model": "linear_elastic", "young": 1e6,
+                                          "poisson": 0.3}})
+    macro = build_macro(problem)
+    bad = macro.n_gp - 1  # the last block: rank 1's
+
+    def factory(g):
+        return (_FailsOnRankOne if g == bad else LinearElastic)(1e6, 0.3, 2)
+
+    # rank 0 meets the failure twice: in the solver's first trial (its initial
+    # tangents) and in a direct trial; either way the point's id comes back
+    farm = MPIFarm(COMM, macro.n_gp, macro.dim, factory)
+    assert bad not in farm.models or COMM.rank == 1
+    if COMM.rank == 0:
+        try:
+            sup, fc, fr = build_loads(problem, macro)
+            try:
+                Solver(macro, farm, sup, fc, fr, SolverSettings(min_step=0.25))
+                message = "no failure"
+            except Exception as err:  # noqa: BLE001 - the message is the test
+                message = str(err)
+            try:
+                farm.trial(np.zeros((macro.n_gp, 2, 2)))
+                message2 = "no failure"
+            except Exception as err:  # noqa: BLE001
+                message2 = f"{type(err).__name__}: {err}"
+        finally:
+            farm.close()
+        _all_ranks_agree(f"Gauss point {bad}: RuntimeError: injected failure" in message2
+                         and f"Gauss point {bad}" in message, f"{message} / {message2}")
+    else:
+        farm.serve()
+        _all_ranks_agree(None)

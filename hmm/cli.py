@@ -7,6 +7,9 @@
     A multiscale run described by a problem file (:mod:`hmm.problem`).
 ``hmm rve rve.toml``
     A standalone drained biaxial (2D) or triaxial (3D) test of one RVE.
+``hmm batch sweep.toml``
+    Many RVE tests (a grid or list of variations) through a dynamic queue over MPI
+    ranks; resumable.
 
 Exit status: 0 on success, 1 when the run fails (no convergence, a micro model that
 cannot relax), 2 on bad input (invalid file, existing output, bad arguments). Errors
@@ -64,6 +67,12 @@ def _parser():
                                      "(biaxial in 2D, triaxial in 3D).")
     rve.add_argument("file", type=Path, help="the RVE test file (TOML)")
     rve.set_defaults(func=_cmd_rve)
+    batch = sub.add_parser("batch", parents=[common], help="run a sweep of RVE tests",
+                           description="Many standalone RVE tests from one sweep file, "
+                                       "over MPI ranks with a dynamic queue when started "
+                                       "by mpiexec; resumable.")
+    batch.add_argument("file", type=Path, help="the sweep file (TOML)")
+    batch.set_defaults(func=_cmd_batch)
     return p
 
 
@@ -185,3 +194,9 @@ def _cmd_rve(args):
     from .experiment import cmd_rve
 
     return cmd_rve(args)
+
+
+def _cmd_batch(args):
+    from .batch import cmd_batch
+
+    return cmd_batch(args)

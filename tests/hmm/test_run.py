@@ -126,3 +126,23 @@ def test_demo_problem_is_valid_and_documented():
 
 def test_example_problem_file_is_valid():
     load_problem(ROOT / "examples" / "biaxial.toml")
+
+
+def test_restart_continues_a_stopped_run_bit_for_bit(tmp_path):
+    (tmp_path / "p.toml").write_text(ELASTIC.replace(
+        "steps = 2", "steps = 3").replace("[load]", "[output]\ncheckpoint_every = 1\n\n[load]"))
+    assert _hmm("run", "p.toml", "-o", "full", cwd=tmp_path).returncode == 0
+    assert _hmm("run", "p.toml", "-o", "cut", "--stop-after", "1",
+                cwd=tmp_path).returncode == 0
+    r = _hmm("run", "p.toml", "-o", "cut", "--restart", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "full" / "fields.h5") as a, \
+            h5py.File(tmp_path / "cut" / "fields.h5") as b:
+        assert sorted(a["steps"]) == sorted(b["steps"])
+        for name in ("steps/00003/displacement", "steps/00003/gauss/stress",
+                     "curve/force/top", "curve/load_factor"):
+            assert np.array_equal(a[name][()], b[name][()])
+    (tmp_path / "p.toml").write_text((tmp_path / "p.toml").read_text().replace(
+        "young = 1e6", "young = 2e6"))
+    r = _hmm("run", "p.toml", "-o", "cut", "--restart", cwd=tmp_path)
+    assert r.returncode == 2 and "belongs to another problem" in r.stderr

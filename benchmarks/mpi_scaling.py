@@ -37,7 +37,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import _common as C  # noqa: E402
+import _common as C
 
 OUT = C.RESULTS / "mpi_scaling.json"
 VENV_BIN = Path(sys.executable).parent
@@ -64,7 +64,7 @@ def displacement(workdir):
     import h5py
 
     with h5py.File(Path(workdir) / "fields.h5") as f:
-        last = sorted(f["steps"])[-1]
+        last = max(f["steps"])
         return f["steps"][last]["displacement"][()]
 
 
@@ -145,16 +145,16 @@ def main():
 
 
 def markdown(data):
-    lines = [f"Demo problem, median of {data['reps']} runs: solve time "
-             f"{data['solve_time_1_rank']:.1f} s on 1 rank, "
-             f"{data['solve_time_2_ranks']:.1f} s on 2 ranks: speedup "
-             f"{data['speedup_2_ranks']:.2f}, efficiency "
-             f"{data['efficiency_2_ranks']:.2f}; results bit-identical: "
-             f"{data['bit_identical']}. One Gauss-point trial costs "
-             f"{1e3 * data['t_gauss_point_trial']:.1f} ms on average.", "",
-             "| elements | Gauss points | dofs | rank 0 assembly + solve [ms] | "
-             "bytes per iteration | ranks before rank 0 limits |",
-             "|---|---|---|---|---|---|"]
+    head = (f"Demo problem, median of {data['reps']} runs: solve time "
+            f"{data['solve_time_1_rank']:.1f} s on 1 rank, "
+            f"{data['solve_time_2_ranks']:.1f} s on 2 ranks: speedup "
+            f"{data['speedup_2_ranks']:.2f}, efficiency "
+            f"{data['efficiency_2_ranks']:.2f}; results bit-identical: "
+            f"{data['bit_identical']}. One Gauss-point trial costs "
+            f"{1e3 * data['t_gauss_point_trial']:.1f} ms on average.")
+    cols = ("| elements | Gauss points | dofs | rank 0 assembly + solve [ms] | "
+            "bytes per iteration | ranks before rank 0 limits |")
+    lines = [head, "", cols, "|---|---|---|---|---|---|"]
     for r in data["assembly"]:
         lines.append(f"| {r['elements']} | {r['gauss_points']} | {r['dofs']} | "
                      f"{1e3 * r['t_asm']:.1f} | {r['bytes_per_iteration']:,} | "

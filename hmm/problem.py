@@ -186,6 +186,7 @@ def validate_problem(data, source="<problem>", base_dir="."):
     Examples
     --------
     >>> p = validate_problem({"mesh": {"size": [1.0, 2.0], "cells": [1, 2]},
+    ...                       "dirichlet": [{"boundary": "bottom", "component": "y"}],
     ...                       "micro": {"model": "linear_elastic", "young": 1e6,
     ...                                 "poisson": 0.3}})
     >>> p["load"]["steps"], p["micro"]["stress0"]

@@ -137,3 +137,33 @@ def test_body_force_reaction_is_the_weight():
     solver.advance(1.0)
     # the support holds the column up: the reaction on the body is the weight, upwards
     assert solver.reactions()["bottom"][1] == pytest.approx(gamma * 2.0, rel=1e-10)
+
+
+def test_one_element_under_homogeneous_strain_follows_the_standalone_rve():
+    """Rollers on two faces, the other two moved: every Gauss point sees the same
+    strain, and its stress path is that of the standalone RVE given the same
+    increments (same packing), to round-off."""
+    import dem
+    from dem import rve as rvemod
+    from hmm.micro import DEMMicroModel
+    from hmm.problem import clone_rve
+
+    law = dem.LinearSpring(kn=1e8, kt=5e7, mu=0.5)
+    packing = rvemod.generate(2, 30, (0.8e-3, 1.2e-3), law, p0=1e5, friction=0.0, seed=4)
+    macro = Macro(structured_mesh("quad1", [1.0, 1.0], [1, 1]), "quad1")
+    farm = SerialFarm([DEMMicroModel(clone_rve(packing)) for _ in range(macro.n_gp)])
+    dofs = np.concatenate([macro.dofs(b, c) for b, c in
+                           (("left", 0), ("bottom", 1), ("right", 0), ("top", 1))])
+    vals = np.concatenate([np.zeros(macro.dofs("left", 0).size),
+                           np.zeros(macro.dofs("bottom", 1).size),
+                           np.full(macro.dofs("right", 0).size, 4e-4),
+                           np.full(macro.dofs("top", 1).size, -8e-4)])
+    solver = Solver(macro, farm, Supports(dofs, vals, ("top",)))
+    alone = clone_rve(packing)
+    for k in (1, 2):
+        solver.advance(0.5)
+        s_alone = alone.apply_strain(np.diag([2e-4, -4e-4]))
+        assert np.allclose(macro.strain(solver.u), np.diag([4e-4, -8e-4]) * k / 2,
+                           rtol=1e-12, atol=1e-18)
+        for g in range(macro.n_gp):
+            assert np.array_equal(solver.sigma[g], s_alone)

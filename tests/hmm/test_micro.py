@@ -86,3 +86,26 @@ def test_adaptive_point_runs_dem_only_outside_its_elastic_range(packing):
 def test_stress_ratio_of_a_biaxial_state():
     assert stress_ratio(np.diag([-1.0, -3.0])) == pytest.approx(0.5)
     assert stress_ratio(np.diag([-1.0, -1.0, -4.0])) == pytest.approx(3.0 / 2.0)
+
+
+def test_a_rejected_trial_leaves_the_rve_exactly_committed(packing):
+    m = DEMMicroModel(clone_rve(packing))
+    before = m.rve.snapshot()
+    m.trial(np.diag([-1e-3, 5e-4]))
+    m.rollback()
+    after = m.rve.snapshot()
+    assert before.keys() == after.keys()
+    assert all(np.array_equal(before[k], after[k]) for k in before)
+
+
+def test_adaptive_with_zero_range_is_the_all_dem_model(packing):
+    """Thresholds below any strain: every trial runs the RVE, bit for bit as DEM."""
+    dem_only = DEMMicroModel(clone_rve(packing))
+    adaptive = Adaptive(DEMMicroModel(clone_rve(packing)), strain_threshold=1e-300,
+                        ratio_threshold=1e-300)
+    for deps in (np.diag([-2e-4, 1e-4]), np.diag([-3e-4, 1e-4])):
+        a = dem_only.trial(deps)
+        b = adaptive.trial(deps)
+        assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+        dem_only.commit()
+        adaptive.commit()

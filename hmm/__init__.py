@@ -1,7 +1,10 @@
 """Multiscale (FEMxDEM) coupling: a scikit-fem macro problem with DEM micro models.
 
-The macro solver, micro models and farms arrive with the multiscale issues; the package
-exists now so that the distribution installs both import packages.
+``hmm.macro`` (the finite element problem), ``hmm.micro`` (micro models behind one
+protocol), ``hmm.farm`` (serial and MPI farms of Gauss points), ``hmm.coupling``
+(Newton with step cutting), ``hmm.problem`` (problem files), ``hmm.run`` (a run and the
+demo), ``hmm.checkpoint``, ``hmm.io`` (fields and plots), ``hmm.experiment`` and
+``hmm.batch`` (standalone RVE tests, one or many), ``hmm.cli`` (the ``hmm`` command).
 """
 
 __all__ = []

@@ -198,5 +198,9 @@ def _cmd_rve(args):
 
 def _cmd_batch(args):
     from .batch import cmd_batch
+    from .farm import mpi_world
 
+    _, comm = mpi_world()
+    if comm is not None:
+        _share_cores(comm.Get_size())
     return cmd_batch(args)

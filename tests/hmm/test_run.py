@@ -45,8 +45,26 @@ steps = 2
 
 
 def _hmm(*args, cwd):
-    return subprocess.run([sys.executable, "-m", "hmm", *args], cwd=cwd, check=False,
-                          capture_output=True, text=True, timeout=300)
+    """``hmm ARGS`` run in this process from ``cwd``: (returncode, stdout, stderr).
+    One test runs the real console entry point as a subprocess."""
+    import contextlib
+    import io
+    import os
+
+    from hmm.cli import main
+
+    out, err = io.StringIO(), io.StringIO()
+    here = os.getcwd()
+    os.chdir(cwd)
+    try:
+        with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+            try:
+                main(list(args))
+            except SystemExit as exc:
+                code = exc.code
+    finally:
+        os.chdir(here)
+    return subprocess.CompletedProcess(args, code, out.getvalue(), err.getvalue())
 
 
 def test_a_problem_file_runs_and_writes_its_outputs(tmp_path):
@@ -90,7 +108,9 @@ def test_bad_problem_files_end_in_one_line(tmp_path, edit, message):
 
 def test_dry_run_validates_only(tmp_path):
     (tmp_path / "p.toml").write_text(ELASTIC)
-    r = _hmm("run", "p.toml", "--dry-run", cwd=tmp_path)
+    r = subprocess.run([sys.executable, "-m", "hmm", "run", "p.toml", "--dry-run"],
+                       cwd=tmp_path, capture_output=True, text=True, timeout=300,
+                       check=False)
     assert r.returncode == 0 and "16 Gauss points" in r.stdout
     assert not (tmp_path / "output").exists()
 

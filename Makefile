@@ -35,6 +35,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/step_profile.py
 	$(BIN)/python benchmarks/contact_speed_accuracy.py
 	$(BIN)/python benchmarks/shape_throughput.py
+	$(BIN)/python benchmarks/rve_call.py
+	$(BIN)/python benchmarks/mpi_scaling.py
 
 clean:
 	rm -rf $(VENV) .numba_cache .pytest_cache output

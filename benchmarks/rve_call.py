@@ -1,0 +1,85 @@
+"""Cost of one Gauss-point call: a periodic RVE takes a strain increment, relaxes, and
+returns its stress and tangent.
+
+The packing: 400 disks (2D; radii uniform in 0.8-1.2 mm, linear springs kn = 1e8 N/m,
+kt = 5e7 N/m, friction 0.5, consolidated frictionless to 100 kPa), or 1,000 spheres (3D,
+kn = 1e5 N/m). From the same committed state, each call restores it, applies an axial
+strain increment of 1e-4 (100 steps at the default cap of 1e-5 per step), relaxes to an
+unbalanced-force ratio of 1e-3 and computes the contact tangent (eq 29) -- what
+``hmm.micro.DEMMicroModel.trial`` does. Reported: median wall time per call over REPS
+calls, the DEM steps per call, and the stepping rate (particle-steps per second of the
+deforming-cell loop on one thread) measured on a plain run of the same packing.
+
+usage::
+
+    python benchmarks/rve_call.py            # writes benchmarks/results/rve_call.json
+
+environment: REPS (20), DIMS ("2 3").
+"""
+
+import os
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _common as C
+
+OUT = C.RESULTS / "rve_call.json"
+
+
+def measure(dim, reps):
+    import numpy as np
+
+    import dem
+    from dem import rve
+
+    n = 400 if dim == 2 else 1000
+    kn = 1e8 if dim == 2 else 1e5
+    law = dem.LinearSpring(kn=kn, kt=0.5 * kn, mu=0.5)
+    t0 = time.perf_counter()
+    r = rve.generate(dim, n, (0.8e-3, 1.2e-3), law, p0=1e5, friction=0.0, seed=1)
+    t_gen = time.perf_counter() - t0
+    snap = r.snapshot()
+    deps = np.zeros((dim, dim))
+    deps[-1, -1] = -1e-4
+    times, steps = [], []
+    for _ in range(reps + 1):  # the first call is a warm-up
+        r.restore(snap)
+        s0 = r.sim.step
+        t0 = time.perf_counter()
+        r.apply_strain(deps)
+        r.tangent()
+        times.append(time.perf_counter() - t0)
+        steps.append(r.sim.step - s0)
+    r.restore(snap)
+    n_steps = 2000
+    t0 = time.perf_counter()
+    r.sim.run(n_steps, progress=False)
+    t_run = time.perf_counter() - t0
+    return {"dim": dim, "particles": n, "generation_time": t_gen,
+            "call_time": C.median(times[1:]), "call_times": times[1:],
+            "steps_per_call": C.median(steps[1:]),
+            "particle_steps_per_s": n * n_steps / t_run,
+            "step_time": t_run / n_steps}
+
+
+def main():
+    reps = C.env_int("REPS", 20)
+    dims = [int(x) for x in C.env_list("DIMS", "2 3")]
+    rows = [measure(d, reps) for d in dims]
+    data = {"benchmark": "rve_call", "date": C.now(), "machine": C.machine_info(),
+            "versions": C.our_versions(), "revision": C.git_revision(),
+            "loadavg": C.loadavg(), "reps": reps, "rows": rows}
+    C.write_json(OUT, data)
+    for r in rows:
+        print(f"{r['dim']}D, {r['particles']} particles: call {1e3 * r['call_time']:.1f} ms "
+              f"({r['steps_per_call']:.0f} steps), stepping "
+              f"{r['particle_steps_per_s'] / 1e6:.2f} M particle-steps/s "
+              f"({1e6 * r['step_time']:.0f} us per step); packing made in "
+              f"{r['generation_time']:.1f} s")
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+    main()

@@ -1,27 +1,14 @@
-"""Many standalone RVE tests over MPI ranks: ``mpiexec -n N hmm batch sweep.toml``.
+"""Sweeps of standalone RVE tests: the file format, ``batch.h5`` and the summaries.
 
-A sweep file holds a ``[base]`` experiment (the sections of an ``hmm rve`` file:
-``packing``, ``contact``, ``test``) and a ``[sweep]`` of variations of it: a ``grid``
-(key path -> values, the Cartesian product) or a ``list`` of override tables. Every
-experiment is validated against :data:`hmm.experiment.RVE_SCHEMA` before anything
+``mpiexec -n N hmm batch sweep.toml`` (:func:`cmd_batch`). A sweep file holds a
+``[base]`` experiment (the sections of an ``hmm rve`` file: ``packing``, ``contact``,
+``test``) and a ``[sweep]`` of variations of it: a ``grid`` (key path -> values, the
+Cartesian product) or a ``list`` of override tables. Every experiment is validated against :data:`hmm.experiment.RVE_SCHEMA` before anything
 runs and gets a stable id, its index and a hash of its overrides (``003-1a2b3c4d``).
 
-Execution (:func:`run_batch`, collective over the ranks):
-
-* rank 0, the master, keeps the queue: it hands one experiment to each idle worker
-  (``send``/``recv`` with tags; the messages are small), records every reply in one
-  HDF5 file (flushed after each) and runs experiments itself between replies,
-  answering the workers after every increment of its own experiment; with one rank it
-  runs them all, through the same code;
-* a worker runs what it is given and replies with the summary and the curves, or
-  with the error; it checks for a stop message after every increment.
-
-Faults: a :class:`dem.rve.RelaxationError` (the packing did not relax) is recorded as
-a failed experiment and the batch goes on; any other exception is a bug or unusable
-input: rank 0 tells every rank to stop (a rank busy with an experiment stops after
-its current increment) and the batch ends with a message naming the experiment.
-Every path through :func:`run_batch` ends with all workers stopped and a broadcast
-from rank 0, so no rank is left waiting.
+The experiments run through the master-worker queue of :mod:`hmm.queue`, which
+records each in ``batch.h5`` (:class:`Store`) as it ends and writes ``summary.csv``
+and ``summary.png`` (:func:`write_summaries`) at the end.
 
 Resume: a rerun into the same ``batch.h5`` skips the experiments stored there (done
 or failed) after checking that their settings are those of the sweep; a changed sweep
@@ -39,11 +26,7 @@ import io
 import itertools
 import json
 import logging
-import math
 import sys
-import time
-import traceback
-from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -51,22 +34,13 @@ import numpy as np
 
 from dem.io.scene import Key, SceneError, Section, read_toml, validate
 
-from .experiment import (
-    _SUMMARY_UNITS,
-    _UNITS,
-    RVE_SCHEMA,
-    _compress,
-    _packing,
-    _summarize,
-    validate_config,
-)
+from .experiment import RVE_SCHEMA, SUMMARY_UNITS, UNITS, validate_config
 from .farm import mpi_world
 
 log = logging.getLogger(__name__)
 
-__all__ = ["BATCH_SCHEMA", "BatchReport", "Experiment", "RankFailure", "Sweep",
-           "cmd_batch", "expand", "experiment_id", "load_sweep", "read_batch",
-           "run_batch", "run_one"]
+__all__ = ["BATCH_SCHEMA", "Experiment", "Store", "Sweep", "cmd_batch", "expand",
+           "experiment_id", "load_sweep", "read_batch", "write_summaries"]
 
 FORMAT, VERSION = "hmm.batch", 1
 OUTPUTS = ("batch.h5", "summary.csv", "summary.png")
@@ -74,9 +48,6 @@ OUTPUTS = ("batch.h5", "summary.csv", "summary.png")
 RUN_METADATA = ("wall_time", "rank")
 #: the sections of [base] a sweep may vary
 SWEPT_SECTIONS = ("packing", "contact", "test")
-
-TAG_TASK, TAG_STOP, TAG_DONE, TAG_FAILED, TAG_ABANDONED = range(11, 16)
-_POLL_S = 0.002  # sleep between probes while waiting (a blocking recv spins a core)
 
 
 class _Text:
@@ -279,62 +250,15 @@ def _normalised(path, value):
     return f(value)
 
 
-# --------------------------------------------------------------------------- one run
-class _Stopped(Exception):
-    """Rank 0 asked this rank to stop: the experiment under way is abandoned."""
-
-
-class _Hook:
-    """Calls ``poll`` after every increment (the progress-bar slot of _compress)."""
-
-    def __init__(self, poll):
-        self.poll = poll
-
-    def update(self, n=1):
-        self.poll()
-
-
-def run_one(cfg, poll=None):
-    """Run the test of a validated config in memory: ``(curves, summary)``.
-
-    The procedure and the results are those of
-    :func:`hmm.experiment.run_experiment`, which writes files; this writes nothing.
-    ``poll()`` is called between the phases and after every increment; it may raise
-    to abandon the test. ``summary["wall_time"]`` [s] is added.
-    """
-    t0 = time.perf_counter()
-    poll = poll or (lambda: None)
-    rve, confining, _ = _packing(cfg)
-    poll()
-    rve.consolidate(confining)
-    poll()
-    t = cfg["test"]
-    n_inc = math.ceil(t["axial_strain"] / t["increment"] - 1e-9)
-    targets = np.minimum(np.arange(1, n_inc + 1) * t["increment"], t["axial_strain"])
-    curves = _compress(rve, confining, targets, _Hook(poll))
-    summary = _summarize(curves, rve, confining, t["increment"])
-    summary["wall_time"] = time.perf_counter() - t0
-    return curves, summary
-
-
-def _attempt(exp_id, cfg, poll):
-    """Run one experiment: ``(tag, payload)`` for the reply to rank 0."""
-    from dem.rve import RelaxationError
-
-    try:
-        curves, summary = run_one(cfg, poll)
-    except _Stopped:
-        return TAG_ABANDONED, exp_id
-    except Exception as exc:  # noqa: BLE001 - reported to rank 0, which decides
-        message = " ".join(f"{type(exc).__name__}: {exc}".split())
-        return TAG_FAILED, (exp_id, isinstance(exc, RelaxationError), message,
-                            traceback.format_exc())
-    return TAG_DONE, (exp_id, curves, summary)
-
-
 # --------------------------------------------------------------------------- the file
-class _Store:
-    """``batch.h5``: a group per experiment, written by rank 0 only."""
+class Store:
+    """``batch.h5``: a group per experiment, written by rank 0 only.
+
+    Opening an existing file resumes it: groups cut short while being written are
+    dropped, and a file of another sweep is refused (SceneError) unless
+    ``overwrite``. ``stored`` maps the id of every experiment in the file to its
+    status.
+    """
 
     def __init__(self, path, sweep, overwrite):
         import h5py
@@ -354,7 +278,7 @@ class _Store:
             if "status" not in self.f[name].attrs:  # cut short while being written
                 del self.f[name]
         self.f.attrs.update(format=FORMAT, version=VERSION, source=sweep.source,
-                            units=json.dumps({**_SUMMARY_UNITS, **_UNITS}),
+                            units=json.dumps({**SUMMARY_UNITS, **UNITS}),
                             conventions="compression positive for strains, p, q; "
                                         "stress dataset tension positive")
         self.f.flush()
@@ -386,7 +310,7 @@ class _Store:
     def done(self, e, curves, summary, rank):
         g = self._group(e, rank)
         for name, values in curves.items():
-            g.create_dataset(name, data=values).attrs["unit"] = _UNITS.get(name, "-")
+            g.create_dataset(name, data=values).attrs["unit"] = UNITS.get(name, "-")
         g.attrs.update(summary)
         self._finish(g, "done")
 
@@ -417,251 +341,6 @@ def read_batch(path):
     return out
 
 
-# --------------------------------------------------------------------------- ranks
-@dataclass
-class BatchReport:
-    """What a batch did; the same object on every rank."""
-
-    n_total: int
-    n_skipped: int = 0  # already in batch.h5
-    n_done: int = 0  # status "done" in batch.h5 at the end (resumed ones included)
-    n_failed: int = 0  # status "failed" (RelaxationError)
-    aborted: str = None  # the one-line reason the batch stopped early
-    files: list = field(default_factory=list)
-    wall_time: float = 0.0
-    ranks: int = 1
-
-
-
-class RankFailure(RuntimeError):
-    """Raised on the workers when rank 0 failed; ``code`` is its exit status."""
-
-    def __init__(self, code):
-        super().__init__(f"the batch failed on rank 0 (exit status {code})")
-        self.code = int(code)
-
-
-class _Master:
-    """Rank 0: the queue, the replies, the file; runs experiments itself too.
-
-    Every worker always holds exactly one task or has been sent a stop. Rank 0
-    answers a reply with the next task or the stop as soon as it sees it: at once
-    when idle, else after its current increment (or packing phase).
-    """
-
-    def __init__(self, MPI, comm):
-        self.MPI, self.comm = MPI, comm
-        self.workers = range(1, comm.size) if comm is not None else range(0)
-        self.busy, self.stopped = {}, set()
-        self.store, self.bar, self.queue, self.by_id = None, None, deque(), {}
-        self.abort = None
-
-    # -- workers
-    def _send_next(self, rank):
-        if self.queue and self.abort is None:
-            e = self.queue.popleft()
-            self.comm.send((e.id, e.config), dest=rank, tag=TAG_TASK)
-            self.busy[rank] = e
-        else:
-            self.stop(rank)
-
-    def stop(self, rank):
-        if rank not in self.stopped:
-            self.comm.send(None, dest=rank, tag=TAG_STOP)
-            self.stopped.add(rank)
-
-    def service(self, block=False):
-        """Take every reply that has arrived (with ``block``: wait for one)."""
-        if self.comm is None:
-            return
-        status = self.MPI.Status()
-        while True:
-            if not self.comm.Iprobe(source=self.MPI.ANY_SOURCE,
-                                    tag=self.MPI.ANY_TAG, status=status):
-                if not block:
-                    return
-                time.sleep(_POLL_S)
-                continue
-            rank, tag = status.Get_source(), status.Get_tag()
-            payload = self.comm.recv(source=rank, tag=tag)
-            self.busy.pop(rank, None)
-            if self.store is not None:  # None while shutting down after a failure
-                if tag == TAG_DONE:
-                    self._record_done(self.by_id[payload[0]], *payload[1:], rank)
-                elif tag == TAG_FAILED:
-                    self._record_failure(self.by_id[payload[0]], *payload[1:], rank)
-            if rank not in self.stopped:
-                self._send_next(rank)
-            block = False
-
-    def shutdown(self, reason):
-        """Stop every worker and take their last replies (after a failure)."""
-        self.store, self.abort = None, self.abort or reason
-        for rank in self.workers:
-            self.stop(rank)
-        deadline = time.monotonic() + 60.0
-        while self.busy and time.monotonic() < deadline:
-            self.service()
-            time.sleep(_POLL_S)
-
-    # -- results
-    def _record_done(self, e, curves, summary, rank):
-        self.store.done(e, curves, summary, rank)
-        log.info("experiment %s done on rank %d in %.1f s", e.id, rank,
-                 summary["wall_time"])
-        self._tick()
-
-    def _record_failure(self, e, is_relaxation, message, tb, rank):
-        if is_relaxation:
-            self.store.failed(e, message, rank)
-            log.warning("experiment %s failed on rank %d: %s", e.id, rank, message)
-            self._tick()
-            return
-        log.debug("experiment %s on rank %d:\n%s", e.id, rank, tb)
-        if self.abort is None:
-            self.abort = f"experiment {e.id} raised {message} (rank {rank})"
-            for r in list(self.busy):  # they stop after their current increment
-                self.stop(r)
-
-    def _tick(self):
-        if self.bar is not None:
-            self.bar.update(1)
-
-    # -- the loop
-    def _poll(self):
-        self.service()
-        if self.abort is not None:
-            raise _Stopped
-
-    def run(self, store, todo, bar):
-        """Hand out, run, record until the queue is empty; every worker stopped."""
-        self.store, self.bar = store, bar
-        self.queue, self.by_id = deque(todo), {e.id: e for e in todo}
-        for rank in self.workers:
-            self._send_next(rank)
-        while self.abort is None:
-            self.service()
-            if not self.queue or self.abort is not None:
-                break
-            e = self.queue.popleft()
-            tag, payload = _attempt(e.id, e.config, self._poll)
-            if tag == TAG_DONE:
-                self._record_done(e, *payload[1:], 0)
-            elif tag == TAG_FAILED:
-                self._record_failure(e, *payload[1:], 0)
-        while self.busy:
-            self.service(block=True)
-        for rank in self.workers:
-            self.stop(rank)
-
-
-def run_batch(sweep, out_dir=None, overwrite=False, progress=None, world=None):
-    """Run the experiments of a sweep; collective over the ranks of ``world``.
-
-    Parameters
-    ----------
-    sweep : Sweep
-        From :func:`load_sweep` (used on rank 0; other ranks may pass None).
-    out_dir : str or Path, optional
-        Output directory (default the sweep's ``[output] dir``).
-    overwrite : bool
-        Replace an existing ``batch.h5`` instead of resuming it.
-    progress : bool, optional
-        A progress bar over the experiments on rank 0 (default: stderr is a terminal).
-    world : (MPI, comm), optional
-        Default :func:`hmm.farm.mpi_world`; ``(None, None)`` runs in this process.
-
-    Returns
-    -------
-    BatchReport
-        On every rank. ``aborted`` is set when an experiment raised anything but a
-        RelaxationError; the experiments finished before it are kept.
-
-    Raises
-    ------
-    SceneError
-        On every rank, before anything ran: ``batch.h5`` holds another sweep.
-    """
-    MPI, comm = mpi_world() if world is None else world
-    if comm is not None and comm.rank != 0:
-        _serve(MPI, comm)
-        outcome = comm.bcast(None, root=0)
-        if isinstance(outcome, str):
-            raise SceneError(outcome)
-        if isinstance(outcome, int):
-            raise RankFailure(outcome)
-        return outcome
-    master = _Master(MPI, comm)
-    try:
-        report = _lead(sweep, out_dir, overwrite, progress, master)
-    except SceneError as exc:
-        master.shutdown(str(exc))
-        _bcast(comm, str(exc))
-        raise
-    except BaseException as exc:
-        master.shutdown("rank 0 failed")
-        _bcast(comm, 130 if isinstance(exc, KeyboardInterrupt) else 1)
-        raise
-    _bcast(comm, report)
-    return report
-
-
-def _bcast(comm, value):
-    if comm is not None:
-        comm.bcast(value, root=0)
-
-
-def _lead(sweep, out_dir, overwrite, progress, master):
-    t0 = time.perf_counter()
-    out = Path(sweep.out_dir if out_dir is None else out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    files = [out / name for name in OUTPUTS]
-    store = _Store(files[0], sweep, overwrite)
-    try:
-        todo = [e for e in sweep.experiments if e.id not in store.stored]
-        n = len(sweep.experiments)
-        report = BatchReport(n, n - len(todo), files=[str(f) for f in files],
-                             ranks=1 if master.comm is None else master.comm.size)
-        bar = None
-        if (sys.stderr.isatty() if progress is None else progress) and todo:
-            from tqdm import tqdm
-
-            bar = tqdm(total=n, initial=report.n_skipped, unit="experiment",
-                       leave=False)
-        try:
-            master.run(store, todo, bar)
-        finally:
-            if bar is not None:
-                bar.close()
-        report.aborted = master.abort
-        statuses = list(store.stored.values())
-    finally:
-        store.close()
-    report.n_done, report.n_failed = statuses.count("done"), statuses.count("failed")
-    _write_summaries(files[0], sweep, files[1], files[2])
-    report.wall_time = time.perf_counter() - t0
-    return report
-
-
-def _serve(MPI, comm):
-    """A worker: run what rank 0 sends until it says stop."""
-    status = MPI.Status()
-
-    def poll():
-        if comm.Iprobe(source=0, tag=TAG_STOP):
-            raise _Stopped
-
-    while True:
-        while not comm.Iprobe(source=0, tag=MPI.ANY_TAG, status=status):
-            time.sleep(_POLL_S)
-        tag = status.Get_tag()
-        payload = comm.recv(source=0, tag=tag)
-        if tag == TAG_STOP:
-            return
-        reply_tag, reply = _attempt(*payload, poll)
-        comm.send(reply, dest=0, tag=reply_tag)
-
-
 # --------------------------------------------------------------------------- summaries
 #: summary.csv columns after id, status and the swept key paths
 CSV_COLUMNS = (("e0", "initial_void_ratio"), ("peak_friction_angle",) * 2,
@@ -674,8 +353,12 @@ def _cell(value):
     return value if isinstance(value, (int, str)) else json.dumps(value)
 
 
-def _write_summaries(h5, sweep, csv_path, png_path):
-    """summary.csv (a row per experiment) and summary.png from ``batch.h5``."""
+def write_summaries(h5, sweep, csv_path, png_path):
+    """summary.csv (a row per experiment) and summary.png from ``batch.h5``.
+
+    Each is written to a temporary file, then renamed; a figure that cannot be drawn
+    is a logged warning.
+    """
     from dem.io.hdf5 import publish
 
     stored = read_batch(h5)
@@ -762,6 +445,8 @@ def cmd_batch(args):
     rank: 0 every experiment done, 1 some failed or the batch stopped early, 2 bad
     input (nothing ran), 130 interrupted. Only rank 0 prints.
     """
+    from .queue import RankFailure, run_batch  # here: hmm.queue imports this module
+
     MPI, comm = mpi_world()
     rank = 0 if comm is None else comm.rank
     sweep = error = None

@@ -41,9 +41,10 @@ from dem.io.text import fmt as _fmt
 
 log = logging.getLogger(__name__)
 
-__all__ = ["RVE_SCHEMA", "CompressionResult", "cmd_rve", "dilatancy_angle",
-           "friction_angle", "load_config", "output_paths", "run_experiment",
-           "stress_invariants", "validate_config"]
+__all__ = ["RVE_SCHEMA", "SUMMARY_UNITS", "UNITS", "CompressionResult", "cmd_rve",
+           "compress", "dilatancy_angle", "friction_angle", "load_config",
+           "make_packing", "output_paths", "run_experiment", "stress_invariants",
+           "validate_config"]
 
 _POSITIVE = Range(0.0, lo_closed=False)
 _NONNEGATIVE = Range(0.0)
@@ -189,9 +190,14 @@ def _law(c):
                         restitution=c["restitution"], mu=c["mu"])
 
 
-def _packing(cfg):
-    """The consolidated RVE of a validated config, the confining pressure [Pa] and
-    whether the packing was generated (SceneError for unusable input)."""
+def make_packing(cfg):
+    """The packing of a validated config, ready for :func:`compress`.
+
+    Returns ``(rve, confining, generated)``: the :class:`dem.rve.RVE`, generated and
+    consolidated at ``[packing] p0`` [Pa] or read from ``[packing] file``; the
+    confining pressure [Pa] of the test; whether the packing was generated. Raises
+    :class:`~dem.io.scene.SceneError` (one line) for unusable input.
+    """
     from dem import rve as rve_mod
     from dem.io.checkpoint import read_group
 
@@ -340,24 +346,21 @@ def run_experiment(cfg, out_dir=None, overwrite=False, progress=None):
         raise FileExistsError(f"output file {existing[0]} exists; pass --overwrite to "
                               f"replace it or choose another directory with --output")
     t0 = time.perf_counter()
-    rve, confining, generated = _packing(cfg)
+    packing = make_packing(cfg)
+    rve, generated = packing[0], packing[2]
     consolidated = rve.snapshot() if generated else None
-    rve.consolidate(confining)  # isotropic, at the working friction
-    t = cfg["test"]
-    n_inc = math.ceil(t["axial_strain"] / t["increment"] - 1e-9)
-    targets = np.minimum(np.arange(1, n_inc + 1) * t["increment"], t["axial_strain"])
     show = sys.stderr.isatty() if progress is None else progress
-    bar = _progress(n_inc, bool(show))
+    bar = _progress(len(_targets(cfg["test"])), bool(show))
     if bar is not None:  # the shared bar counts time steps; this one increments
         bar.unit, bar.unit_scale = "increment", False
+    shown = None if bar is None else (lambda k: bar.update(k - bar.n))  # bar at k
     try:
-        curves = _compress(rve, confining, targets, bar)
+        result = compress(cfg, shown, packing)
     finally:
         if bar is not None:
             bar.close()
-    summary = _summarize(curves, rve, confining, t["increment"])
-    summary["wall_time"] = time.perf_counter() - t0
-    result = CompressionResult(curves, summary, cfg, generated, paths)
+    result.summary["wall_time"] = time.perf_counter() - t0
+    result.files = paths
     paths[0].parent.mkdir(parents=True, exist_ok=True)
     _write_h5(paths[0], result)
     _write_figure(paths[1], result)
@@ -369,7 +372,56 @@ def run_experiment(cfg, out_dir=None, overwrite=False, progress=None):
     return result
 
 
-def _compress(rve, confining, targets, bar):
+def compress(cfg, on_increment=None, packing=None):
+    """Run the test of a validated config in memory; nothing is written.
+
+    The packing is consolidated isotropically at the confining pressure, then
+    compressed in increments of axial strain (see the module), as by
+    :func:`run_experiment`, with the same results.
+
+    Parameters
+    ----------
+    cfg : dict
+        A validated configuration (:func:`load_config`).
+    on_increment : callable, optional
+        ``on_increment(k)`` is called with ``k = 0`` once the packing is consolidated
+        at the confining pressure, then with ``k = 1, ..., n`` after increment ``k``.
+        It may raise to abandon the test.
+    packing : tuple, optional
+        ``(rve, confining, generated)`` from :func:`make_packing` (default: made
+        here). The RVE is left in the state at the end of the test.
+
+    Returns
+    -------
+    CompressionResult
+        Without ``files``; ``summary["wall_time"]`` [s] is the time of this call.
+
+    Raises
+    ------
+    SceneError
+        Unusable packing parameters or packing file.
+    dem.rve.RelaxationError
+        An increment did not relax.
+    """
+    t0 = time.perf_counter()
+    rve, confining, generated = make_packing(cfg) if packing is None else packing
+    rve.consolidate(confining)  # isotropic, at the working friction
+    if on_increment is not None:
+        on_increment(0)
+    t = cfg["test"]
+    curves = _curves(rve, confining, _targets(t), on_increment)
+    summary = _summarize(curves, rve, confining, t["increment"])
+    summary["wall_time"] = time.perf_counter() - t0
+    return CompressionResult(curves, summary, cfg, generated)
+
+
+def _targets(t):
+    """The engineering axial strains at the end of the increments of ``[test]``."""
+    n_inc = math.ceil(t["axial_strain"] / t["increment"] - 1e-9)
+    return np.minimum(np.arange(1, n_inc + 1) * t["increment"], t["axial_strain"])
+
+
+def _curves(rve, confining, targets, on_increment):
     """Axial increments to the engineering strains ``targets``; the curves."""
     d = rve.dim
     axial = d - 1
@@ -377,14 +429,14 @@ def _compress(rve, confining, targets, bar):
     lateral = np.full(d, -confining)
     f0_inv = np.linalg.inv(rve.deformation)
     rows = [_record(rve, rve.stress(), f0_inv, 0)]
-    for target in targets:
+    for k, target in enumerate(targets, 1):
         f_rel = rve.deformation @ f0_inv
         deps = np.zeros((d, d))
         deps[axial, axial] = (1.0 - target) / f_rel[axial, axial] - 1.0
         stress = rve.load(deps, stress=lateral, mask=mask)
         rows.append(_record(rve, stress, f0_inv, rve.last_relax_steps))
-        if bar is not None:
-            bar.update(1)
+        if on_increment is not None:
+            on_increment(k)
     curves = {k: np.array([r[k] for r in rows]) for k in rows[0]}
     p, q = stress_invariants(curves["stress"])
     curves.update(p=p, q=q, stress_ratio=q / p,
@@ -422,8 +474,10 @@ def _summarize(c, rve, confining, increment):
 
 
 # --------------------------------------------------------------------------- output
-_UNITS = {"stress": "Pa", "p": "Pa", "q": "Pa", "friction_angle": "deg"}
-_SUMMARY_UNITS = {"confining": "Pa", "peak_friction_angle": "deg",
+#: unit of each curve that has one (the others are dimensionless)
+UNITS = {"stress": "Pa", "p": "Pa", "q": "Pa", "friction_angle": "deg"}
+#: unit of each summary value that has one
+SUMMARY_UNITS = {"confining": "Pa", "peak_friction_angle": "deg",
                   "dilatancy_angle": "deg", "critical_friction_angle": "deg",
                   "critical_dilatancy_angle": "deg", "wall_time": "s"}
 
@@ -436,10 +490,10 @@ def _write_h5(path, result):
     tmp = path.with_name(path.name + ".tmp")
     with h5py.File(tmp, "w") as f:
         for name, values in result.curves.items():
-            f.create_dataset(name, data=values).attrs["unit"] = _UNITS.get(name, "-")
+            f.create_dataset(name, data=values).attrs["unit"] = UNITS.get(name, "-")
         for name, value in result.summary.items():
             f.attrs[name] = value
-        f.attrs["units"] = json.dumps(_SUMMARY_UNITS)
+        f.attrs["units"] = json.dumps(SUMMARY_UNITS)
         f.attrs["config"] = json.dumps(result.config)
         f.attrs["conventions"] = ("compression positive for strains, p, q; stress "
                                   "dataset tension positive; engineering strains")

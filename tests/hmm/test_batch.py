@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from dem.io.scene import SceneError, schema_markdown
-from hmm import batch
+from hmm import batch, queue
 from hmm.batch import BATCH_SCHEMA, cmd_batch, expand, load_sweep, read_batch
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -36,7 +36,7 @@ increment = 0.01
 "test.confining" = [5e4, 1e5, 2e5]
 """
 
-_RUN_ONE = batch.run_one
+_RUN_ONE = queue.run_one
 
 BASE = {"packing": {"count": 36, "radius": [0.8e-3, 1.2e-3], "p0": 1e5},
         "contact": {"law": "linear", "kn": 1e8, "kt": 5e7, "mu": 0.5}}
@@ -184,7 +184,7 @@ def test_rerun_skips_what_is_stored(finished, tmp_path, monkeypatch, capsys):
     path, out = finished
     shutil.copytree(out, tmp_path / "out")
     fake = _Counting()
-    monkeypatch.setattr(batch, "run_one", fake)
+    monkeypatch.setattr(queue, "run_one", fake)
     assert _cmd(path, output=tmp_path / "out") == 0
     assert fake.calls == []
     assert "(0 run, 3 already in batch.h5)" in capsys.readouterr().out
@@ -195,13 +195,13 @@ def test_interrupted_then_resumed_equals_uninterrupted(finished, tmp_path,
                                                        monkeypatch, capsys):
     path, out = finished
     cut = _Counting(raise_on=2, error=KeyboardInterrupt())
-    monkeypatch.setattr(batch, "run_one", cut)
+    monkeypatch.setattr(queue, "run_one", cut)
     assert _cmd(path, output=tmp_path) == 130
     assert "interrupted" in capsys.readouterr().err
     with h5py.File(tmp_path / "batch.h5") as f:
         assert list(f) == [cut.calls[0]]  # what finished was kept
     again = _Counting()
-    monkeypatch.setattr(batch, "run_one", again)
+    monkeypatch.setattr(queue, "run_one", again)
     assert _cmd(path, output=tmp_path) == 0
     assert again.calls == cut.calls[1:] + [load_sweep(path).experiments[2].id]
     assert_same_numbers(tmp_path / "batch.h5", out / "batch.h5")
@@ -245,7 +245,7 @@ def test_any_other_error_stops_the_batch_naming_the_experiment(tmp_path, monkeyp
                                                                capsys):
     path = _write(tmp_path, SWEEP)
     bad = load_sweep(path).experiments[1].id
-    monkeypatch.setattr(batch, "run_one", _Counting(bad, ValueError("injected")))
+    monkeypatch.setattr(queue, "run_one", _Counting(bad, ValueError("injected")))
     assert _cmd(path) == 1
     err = capsys.readouterr().err
     assert err.startswith(f"hmm batch: error: experiment {bad} raised ValueError: "

@@ -18,8 +18,9 @@ import pytest
 
 MPI = pytest.importorskip("mpi4py.MPI")
 
-from hmm import batch
-from hmm.batch import cmd_batch, load_sweep, read_batch, run_batch
+from hmm import batch, queue
+from hmm.batch import cmd_batch, load_sweep, read_batch
+from hmm.queue import run_batch
 
 pytestmark = pytest.mark.mpi
 COMM = MPI.COMM_WORLD
@@ -120,14 +121,14 @@ def test_a_bug_ends_the_job_naming_the_experiment(workdir, monkeypatch, capsys,
     if COMM.size < 2:
         pytest.skip("needs a worker: run through `make test-mpi` (mpiexec -n 2)")
     path = _sweep_file(workdir)
-    run = batch.run_one
+    run = queue.run_one
 
     def faulty(cfg, poll=None):
         if COMM.rank == faulty_rank:
             raise ValueError("injected fault")
         return run(cfg, poll)
 
-    monkeypatch.setattr(batch, "run_one", faulty)
+    monkeypatch.setattr(queue, "run_one", faulty)
     t0 = time.perf_counter()
     code = _cmd(path)
     elapsed = time.perf_counter() - t0

@@ -305,7 +305,7 @@ class Simulation:
         numba.set_num_threads(self.threads)
         self.prime()
         end = self.step + n_steps
-        bar = _progress(n_steps, progress)
+        bar = progress_bar(n_steps, progress)
         try:
             while self.step < end:
                 for c in self.controllers:
@@ -579,13 +579,15 @@ class Simulation:
         return out
 
 
-def _progress(n_steps, progress):
+def progress_bar(n_steps, progress, min_steps=20000, unit="step"):
+    """A tqdm bar over ``n_steps``, or None. ``progress`` True/False forces it; None
+    shows it when stderr is a terminal and there are at least ``min_steps``."""
     import sys
 
     if progress is None:
-        progress = n_steps >= 20000 and sys.stderr.isatty()
+        progress = n_steps >= min_steps and sys.stderr.isatty()
     if not progress:
         return None
     from tqdm import tqdm
 
-    return tqdm(total=n_steps, unit="step", unit_scale=True, leave=False)
+    return tqdm(total=n_steps, unit=unit, unit_scale=min_steps > 1, leave=False)

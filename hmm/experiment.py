@@ -338,7 +338,7 @@ def run_experiment(cfg, out_dir=None, overwrite=False, progress=None):
     dem.rve.RelaxationError
         An increment did not relax; nothing is written.
     """
-    from dem.simulation import _progress
+    from dem.simulation import progress_bar
 
     paths = output_paths(cfg, out_dir)
     existing = [p for p in paths if p.exists()]
@@ -349,10 +349,8 @@ def run_experiment(cfg, out_dir=None, overwrite=False, progress=None):
     packing = make_packing(cfg)
     rve, generated = packing[0], packing[2]
     consolidated = rve.snapshot() if generated else None
-    show = sys.stderr.isatty() if progress is None else progress
-    bar = _progress(len(_targets(cfg["test"])), bool(show))
-    if bar is not None:  # the shared bar counts time steps; this one increments
-        bar.unit, bar.unit_scale = "increment", False
+    bar = progress_bar(len(_targets(cfg["test"])), progress, min_steps=1,
+                       unit="increment")
     shown = None if bar is None else (lambda k: bar.update(k - bar.n))  # bar at k
     try:
         result = compress(cfg, shown, packing)

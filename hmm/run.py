@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dem.simulation import _progress
+from dem.simulation import progress_bar
 
 from .checkpoint import Checkpoint
 from .checkpoint import save as save_checkpoint
@@ -126,7 +126,7 @@ def _solve(problem, macro, farm, supports, f_const, f_ramp, out, progress, say, 
         say(f"restarted from the checkpoint of step {ck.step}")
     every_ck = problem["output"]["checkpoint_every"]
     last = n if stop_after is None else min(n, int(stop_after))
-    bar = _progress(last - first + 1, progress)
+    bar = progress_bar(last - first + 1, progress, min_steps=1, unit="load step")
     t1 = time.perf_counter()
     try:
         for k in range(first, last + 1):

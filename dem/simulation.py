@@ -262,7 +262,7 @@ class Simulation:
             self.damping, nl.skin, self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel,
             b.force, b.torque, b.radius, b.mass, self._inv_mass, self._inv_inertia,
             self._fixed, b.normal, b.mat_id, nl.pos_ref, self._grow(), self._hmat,
-            self._lgrad, self._cellref, nl.pairs, nl.img, self.touch, self.hist, self.fpair, self._contrib,
+            self._lgrad, self._cellref, self.cell is not None, nl.pairs, nl.img, self.touch, self.hist, self.fpair, self._contrib,
             self._slot, self._inc_start, self._blk_start, self._params_pp, self._inner,
             self._n_inner,
             self._pos_inner, INNER_SKIN * nl.skin, nl.wall_pairs, self.whist,

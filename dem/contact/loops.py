@@ -484,23 +484,26 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
     """The compiled multi-step kernel for ``dim`` (2 or 3) and two law codes.
 
     ``law_pp``/``law_pw`` are law codes (a law class's ``code``: 0 linear, 1
-    Hertz-Mindlin); ``periodic`` compiles in the periodic-image shifts; ``deform``
-    the deforming cell (:mod:`dem.boundary`: ``hmat`` advanced by ``lgrad`` every
-    step, bodies carried by the affine field, ``cellref`` (2, d, d) holding H^-1 at
-    the Verlet build and at the inner list's making). Only integers
-    are captured, so the kernel caches on disk; the branches not taken fold away at
-    compile time.
+    Hertz-Mindlin); ``periodic`` (or ``deform``) compiles in the periodic-image shifts
+    and the deforming cell (:mod:`dem.boundary`), one kernel for both: with
+    ``is_cell`` true at run time, ``hmat`` is advanced by ``lgrad`` every step, bodies
+    are carried by the affine field and ``cellref`` (2, d, d) holds H^-1 at the
+    Verlet build and at the inner list's making; an orthogonal periodic box passes
+    ``is_cell`` false and a zero ``lgrad``, and every affine term adds an exact zero.
+    Only integers are captured, so the kernel caches on disk; the branches not taken
+    fold away at compile time.
     """
-    key = (int(dim), int(law_pp), int(law_pw), bool(periodic or deform), bool(deform))
+    key = (int(dim), int(law_pp), int(law_pw), bool(periodic or deform))
     if key in _STEPPERS:
         return _STEPPERS[key]
-    DIM, PP, PW, PERIODIC, DEFORM = key
+    DIM, PP, PW, PERIODIC = key
+    DEFORM = PERIODIC
 
     @kernel(parallel=True)
     def run_steps(n_steps, prime, resume, serial, dt, gravity, damping, skin, overlap_limit,
                   pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass,
                   inv_inertia, is_fixed, normal, mat_id, pos_ref, grow, hmat, lgrad,
-                  cellref, pairs, img, touch, hist, fpair, contrib, slot, inc_start, blk_start,
+                  cellref, is_cell, pairs, img, touch, hist, fpair, contrib, slot, inc_start, blk_start,
                   params_pp, inner, n_inner, pos_inner, skin_inner,
                   wpairs, whist, wforce, wtorque, wstart, params_pw,
                   status_out, work_out):
@@ -528,13 +531,13 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
         # strain times at most 2 r_max + skin on top of the bodies' own motion
         fmap = np.eye(DIM)
         rmax = 0.0
-        if DEFORM:
+        if DEFORM and is_cell:
             for b in range(n):
                 rmax = max(rmax, radius[b])
             _cell_map(hmat, cellref[1], fmap)
         for it in range(n_iter):
             if not prime and not (resume and it == 0):
-                if DEFORM:  # the cell moves with the bodies' affine field: H += dt L H
+                if DEFORM and is_cell:  # the cell follows the affine field: H += dt L H
                     _deform_cell(hmat, lgrad, dt)
                     _cell_map(hmat, cellref[1], fmap)
                 # ---- 1. half kick + drift
@@ -559,7 +562,7 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
                     n_inner[0] = -1
             if n_inner[0] < 0:
                 # refresh the inner list from the Verlet list, which must still hold
-                if DEFORM:
+                if DEFORM and is_cell:
                     _cell_map(hmat, cellref[0], fmap)
                 maxd2 = 0.0
                 for b in numba.prange(n):
@@ -568,7 +571,7 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
                 if 2.0 * (math.sqrt(maxd2) + grow) + strain * (2.0 * rmax + skin) > skin:
                     status_out[0] = REBUILD
                     return done
-                if DEFORM:
+                if DEFORM and is_cell:
                     cellref[1, :, :] = np.linalg.inv(hmat)
                     fmap[:, :] = np.eye(DIM)
                 status_out[3] += 1  # inner refreshes, counted by the caller

@@ -14,10 +14,12 @@ to ``t + dt``, in this order:
    that relaxes to a tolerance answers with noise that a cut step must not have to
    beat); then ``farm.commit()`` and the step is
    done. A step that has not converged in ``max_iterations``, whose residual grows
-   three times in a row, or in which a micro model fails, is **cut**:
+   three times in a row, or in which a micro model's physics fails (an RVE that
+   cannot relax), is **cut**:
    ``farm.rollback()`` and the step is retried at half its size, down to
    ``min_step`` times the nominal step, after which :class:`SolverError` stops the
-   run (the last converged step has been written).
+   run (the last converged step has been written). Any other exception of a micro
+   model (a bug, bad input) stops the run at once, naming the Gauss point.
 """
 
 import logging
@@ -160,6 +162,10 @@ class Solver:
             try:
                 sig, c = farm.trial(macro.strain(du))
             except MicroFailure as err:
+                if not err.recoverable:  # a bug or bad input: cutting cannot help
+                    farm.rollback()
+                    raise SolverError(f"load step at t = {self.t:.6g} stopped: {err}") \
+                        from err
                 raise _NotConverged(str(err)) from err
             f_int = macro.internal_force(sig)
             r = f_int - f_ext

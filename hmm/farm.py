@@ -38,11 +38,20 @@ def mpi_world():
 
 
 class MicroFailure(RuntimeError):
-    """A micro model failed; ``point`` is its Gauss point index."""
+    """A micro model failed; ``point`` is its Gauss point index. ``recoverable``: the
+    physics failed (an RVE that cannot relax, a blown-up step), which a smaller load
+    step may cure; anything else is a bug or bad input, and the run must stop."""
 
-    def __init__(self, point, message):
+    def __init__(self, point, message, recoverable=False):
         super().__init__(f"Gauss point {point}: {message}")
         self.point = int(point)
+        self.recoverable = bool(recoverable)
+
+
+def _recoverable(err):
+    from dem.simulation import SimulationError
+
+    return isinstance(err, (SimulationError, ArithmeticError))
 
 
 class SerialFarm:
@@ -73,7 +82,8 @@ class SerialFarm:
             try:
                 self._sig[k], self._c[k] = m.trial(deps[k])
             except Exception as err:  # any failure of a point is reported as its own
-                raise MicroFailure(k, f"{type(err).__name__}: {err}") from err
+                raise MicroFailure(k, f"{type(err).__name__}: {err}",
+                                   _recoverable(err)) from err
             self.cost[k] = time.perf_counter() - t0
             self.steps[k] = getattr(m, "steps", 0)
         self.n_trials += 1
@@ -253,7 +263,7 @@ class MPIFarm:
             try:
                 s, t = self.models[g].trial(own[k])
             except Exception as err:  # noqa: BLE001 - reported with the point's id
-                failure = (g, f"{type(err).__name__}: {err}")
+                failure = (g, f"{type(err).__name__}: {err}", _recoverable(err))
                 break
             sig[k], c[k] = s.ravel(), t.ravel()
             cost[k] = time.perf_counter() - t0, getattr(self.models[g], "steps", 0)
@@ -269,8 +279,7 @@ class MPIFarm:
         self.steps[:] = cost[:, 1]
         bad = [f for f in failures if f is not None]
         if bad:
-            g, msg = min(bad)
-            raise MicroFailure(g, msg)
+            raise MicroFailure(*min(bad))
         return sig.reshape(self.n, d, d), c.reshape(self.n, d, d, d, d)
 
     def _commit(self):

@@ -6,6 +6,7 @@ import itertools
 import numpy as np
 import pytest
 
+from dem.rve import RelaxationError
 from hmm.coupling import Solver, SolverError, SolverSettings, Supports
 from hmm.farm import MicroFailure, SerialFarm
 from hmm.macro import Macro, structured_mesh
@@ -85,7 +86,7 @@ class _Brittle(MicroModel):
 
     def trial(self, deps):
         if np.abs(deps).max() > self.limit:
-            raise ValueError(f"increment {np.abs(deps).max():.3g} too large")
+            raise RelaxationError(f"increment {np.abs(deps).max():.3g} too large")
         return self.inner.trial(deps)
 
     def commit(self):
@@ -111,16 +112,33 @@ def test_step_cutting_stops_at_the_minimum_with_the_point_named():
     farm = SerialFarm([_Brittle(1e-9) for _ in range(macro.n_gp)])
     solver = Solver(macro, farm, _rollers(macro, 0.01),
                     settings=SolverSettings(min_step=0.1))
-    with pytest.raises(SolverError, match=r"Gauss point 0: ValueError: increment"):
+    with pytest.raises(SolverError, match=r"Gauss point 0: RelaxationError: increment"):
         solver.advance(1.0)
     assert solver.t == 0.0 and np.all(solver.u == 0.0)  # nothing committed
+    assert solver.cuts == 4  # 1 -> 1/2 -> ... -> 1/16 < 0.1: stop
+
+
+class _Buggy(LinearElastic):
+    def trial(self, deps):
+        if deps.any():
+            raise KeyError("a bug")
+        return super().trial(deps)
+
+
+def test_a_micro_model_bug_stops_the_run_without_cutting():
+    macro = Macro(structured_mesh("quad1", [1.0, 1.0], [1, 1]), "quad1")
+    farm = SerialFarm([_Buggy(E, NU, 2) for _ in range(macro.n_gp)])
+    solver = Solver(macro, farm, _rollers(macro, 0.01))
+    with pytest.raises(SolverError, match=r"stopped: Gauss point 0: KeyError"):
+        solver.advance(1.0)
+    assert solver.cuts == 0
 
 
 def test_farm_names_the_failing_point():
     farm = SerialFarm([LinearElastic(E, NU, 2), _Brittle(0.0)])
     with pytest.raises(MicroFailure, match="Gauss point 1") as err:
         farm.trial(np.full((2, 2, 2), 1e-3))
-    assert err.value.point == 1
+    assert err.value.point == 1 and err.value.recoverable
 
 
 def test_body_force_reaction_is_the_weight():

@@ -98,8 +98,8 @@ def assembly_cost(sizes, reps=5):
             r = macro.internal_force(sig)
             solve(*condense(k, -r, D=fixed))
             times.append(time.perf_counter() - t0)
-        out.append({"elements": macro.n_elems, "gauss_points": macro.n_gp,
-                    "dofs": macro.n_dofs, "t_asm": C.median(times)})
+        out.append({"elements": int(macro.n_elems), "gauss_points": int(macro.n_gp),
+                    "dofs": int(macro.n_dofs), "t_asm": float(C.median(times))})
     return out
 
 

@@ -105,7 +105,10 @@ def main(argv=None):
 
 
 def _error(prog, msg, code):
-    print(f"{prog}: error: " + " ".join(str(msg).split()), file=sys.stderr)
+    import os
+
+    if os.environ.get("PMI_RANK", "0") == "0":  # under mpiexec every rank fails alike
+        print(f"{prog}: error: " + " ".join(str(msg).split()), file=sys.stderr)
     return code
 
 
@@ -159,7 +162,8 @@ def _solve(problem, args, prog):
         if comm is None:
             raise
         # a bug on one rank must not leave the others waiting: end the whole job
-        _error(prog, f"rank {comm.Get_rank()}: {type(err).__name__}: {err}", EXIT_FAILED)
+        print(f"{prog}: error: rank {comm.Get_rank()}: {type(err).__name__}: "
+              + " ".join(str(err).split()), file=sys.stderr, flush=True)
         comm.Abort(EXIT_FAILED)
     if summary is None:  # a worker rank: rank 0 reports
         return EXIT_OK

@@ -144,8 +144,12 @@ def test_demo_problem_is_valid_and_documented():
         validate_problem({**DEMO, "dirichlet": []})
 
 
-def test_example_problem_file_is_valid():
-    load_problem(ROOT / "examples" / "biaxial.toml")
+def test_example_problem_file_is_the_demo():
+    example = load_problem(ROOT / "examples" / "biaxial.toml")
+    demo = validate_problem(DEMO, "<demo>")
+    for section in demo:
+        if section not in ("source", "output"):
+            assert example[section] == demo[section], section
 
 
 def test_restart_continues_a_stopped_run_bit_for_bit(tmp_path):

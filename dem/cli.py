@@ -16,22 +16,23 @@ log = logging.getLogger(__name__)
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
 
-class _Parser(argparse.ArgumentParser):
-    """An argument parser whose usage errors are one line, ``dem: error: ...``."""
+class Parser(argparse.ArgumentParser):
+    """An argument parser whose usage errors are one line, ``PROG: error: ...`` (the
+    ``dem`` and ``hmm`` commands share it)."""
 
     def error(self, message):
-        raise _UsageError(f"{message} (see '{self.prog} --help')")
+        raise UsageError(f"{message} (see '{self.prog} --help')")
 
 
-class _UsageError(Exception):
-    pass
+class UsageError(Exception):
+    """A bad command line; the message is one line."""
 
 
 def _parser():
-    parser = _Parser(prog="dem", description="DEM simulations from TOML scene files.")
+    parser = Parser(prog="dem", description="DEM simulations from TOML scene files.")
     parser.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
                         help="more log messages (-vv for debug)")
-    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     run = sub.add_parser(
         "run", help="run a scene file",
         description="Validate, build and run a TOML scene; write HDF5 output.",
@@ -74,7 +75,7 @@ def main(argv=None):
     try:
         try:
             args = _parser().parse_args(argv)
-        except _UsageError as exc:
+        except UsageError as exc:
             code = _error(str(exc), EXIT_USAGE)
         else:
             verbose = getattr(args, "verbose", 0)

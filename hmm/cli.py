@@ -16,29 +16,21 @@ cannot relax), 2 on bad input (invalid file, existing output, bad arguments). Er
 are one line on stderr, ``hmm <command>: error: ...``, never a traceback.
 """
 
-import argparse
 import logging
 import sys
 from pathlib import Path
+
+from dem.cli import Parser, UsageError
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
 log = logging.getLogger(__name__)
 
 
-class _Parser(argparse.ArgumentParser):
-    def error(self, message):
-        raise _UsageError(f"{message} (see '{self.prog} --help')")
-
-
-class _UsageError(Exception):
-    pass
-
-
 def _parser():
-    p = _Parser(prog="hmm", description="Multiscale FEM x DEM runs.")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
-    common = _Parser(add_help=False)
+    p = Parser(prog="hmm", description="Multiscale FEM x DEM runs.")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
+    common = Parser(add_help=False)
     common.add_argument("-o", "--output", type=Path, metavar="DIR",
                         help="output directory (overrides [output] dir)")
     common.add_argument("--overwrite", action="store_true",
@@ -86,7 +78,7 @@ def main(argv=None):
     try:
         try:
             args = _parser().parse_args(argv)
-        except _UsageError as exc:
+        except UsageError as exc:
             code = _error("hmm", str(exc), EXIT_USAGE)
         else:
             if args.command is None:

@@ -548,15 +548,24 @@ class Simulation:
             np.copyto(self.cell.lgrad, snap["cell_lgrad"])
             np.copyto(self._cellref, snap["cellref"])
             self.cell.n_reductions = int(snap["cell_n"][0])
+        inner = None
+        if not self.shaped:
+            n_inner, n_internal = (int(x) for x in snap["n_inner"])
+            inner = (n_inner, n_internal, snap["inner"][:max(n_inner, 0)],
+                     snap["pos_inner"])
+        self._reindex(inner)
+
+    def _reindex(self, inner):
+        """After lists and contact arrays were set from saved state: tables, the
+        per-body indexes and the inner list ``(n_inner, n_internal, inner,
+        pos_inner)`` of the sphere loop; the state counts as primed."""
         self._refresh_tables()
         if self.shaped:
             self._old_warm = (self.warm, self.wwarm)
             self._shape_index()
         else:
             self._index()
-            n_inner, n_internal = (int(x) for x in snap["n_inner"])
-            self._restore_inner(n_inner, n_internal, snap["inner"][:max(n_inner, 0)],
-                                snap["pos_inner"])
+            self._restore_inner(*inner)
         self._primed = True
 
     # ------------------------------------------------------------------ contact data

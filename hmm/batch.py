@@ -392,7 +392,7 @@ def _write_figure(path, sweep, rows):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from dem.io.hdf5 import publish
+    from dem.io.hdf5 import save_figure
 
     params = sweep.parameters
     first, second = params[0], (params[1] if len(params) > 1 else None)
@@ -430,10 +430,7 @@ def _write_figure(path, sweep, rows):
     ax.legend(fontsize="small")
     ax.set_title(f"{Path(sweep.source).name}: {len(done)} of {len(rows)} "
                  f"experiments done", fontsize="medium")
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as fh:
-        fig.savefig(fh, format="png", dpi=110)
-    publish(tmp, path)
+    save_figure(fig, path, dpi=110)
 
 
 # --------------------------------------------------------------------------- CLI

@@ -502,7 +502,7 @@ def _write_figure(path, result):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    from dem.io.hdf5 import publish
+    from dem.io.hdf5 import save_figure
 
     c, s = result.curves, result.summary
     ea = 100.0 * c["axial_strain"]
@@ -523,10 +523,7 @@ def _write_figure(path, result):
     test = "biaxial" if s["dim"] == 2 else "triaxial"
     fig.suptitle(f"drained {test} test, {s['n_particles']} particles, confining "
                  f"{s['confining']:.4g} Pa, e0 = {s['initial_void_ratio']:.3f}")
-    tmp = path.with_name(path.name + ".tmp")
-    with open(tmp, "wb") as fh:
-        fig.savefig(fh, format="png", dpi=120)
-    publish(tmp, path)
+    save_figure(fig, path, dpi=120)
 
 
 # --------------------------------------------------------------------------- CLI

@@ -26,6 +26,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from dem.io.hdf5 import save_figure
+
 log = logging.getLogger(__name__)
 
 _TOPOLOGY = {"quad1": "Quadrilateral", "quad2": "Quadrilateral", "tri1": "Triangle",
@@ -243,7 +245,7 @@ class Output:
         ax.grid(alpha=0.3)
         ax.legend()
         fig.tight_layout()
-        fig.savefig(self.dir / "load_displacement.png", dpi=120)
+        save_figure(fig, self.dir / "load_displacement.png")
         plt.close(fig)
         if d != 2 or not self.frames:
             return
@@ -273,5 +275,5 @@ class Output:
             fig.colorbar(pc, ax=ax, shrink=0.8)
         fig.suptitle(f"final step, displacements x {scale:.3g}", fontsize=10)
         fig.tight_layout()
-        fig.savefig(self.dir / "deviatoric_strain.png", dpi=120)
+        save_figure(fig, self.dir / "deviatoric_strain.png")
         plt.close(fig)

@@ -11,8 +11,13 @@ Every file is written to ``path + ".tmp"`` and renamed into place, so a killed r
 never leaves a truncated file under the final name.
 """
 
-from .checkpoint import (load_checkpoint, read_bodies, save_checkpoint, write_bodies,
-                         write_last_good_state)
+from .checkpoint import (
+                         load_checkpoint,
+                         read_bodies,
+                         save_checkpoint,
+                         write_bodies,
+                         write_last_good_state,
+)
 from .hdf5 import H5Writer, read_frame
 from .xdmf import write_xdmf
 

@@ -353,14 +353,7 @@ def load_checkpoint(path, model, observers=(), controllers=(), state_objects=())
     sim._radius_ref = state["radius_ref"]
     if state["cellref"] is not None:
         sim._cellref[:] = state["cellref"]
-    sim._refresh_tables()
-    if sim.shaped:
-        sim._old_warm = (sim.warm, sim.wwarm)
-        sim._shape_index()
-    else:
-        sim._index()
-        sim._restore_inner(*state["inner"])
-    sim._primed = True
+    sim._reindex(state["inner"])
     for name in ("params_pp", "params_pw"):
         saved, now = state["model"].get(name), getattr(sim, "_" + name)
         if saved is not None and not (saved.shape == now.shape

@@ -74,6 +74,17 @@ def publish(tmp_path, path):
     os.replace(tmp_path, path)
 
 
+def save_figure(fig, path, dpi=120):
+    """Write a matplotlib figure as PNG atomically (a ``.tmp`` file, then
+    :func:`publish`): a reader never sees half a picture."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    with open(tmp, "wb") as fh:
+        fig.savefig(fh, format="png", dpi=dpi)
+    publish(tmp, path)
+    return path
+
+
 def frame_name(index):
     """Group name of frame ``index``: six digits, zero padded.
 

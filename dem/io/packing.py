@@ -6,7 +6,9 @@ message. :mod:`dem.io.scene` turns these messages into scene-file errors.
 
 import numpy as np
 
-from .text import fmt as _fmt, reason as _reason, show as _show
+from .text import fmt as _fmt
+from .text import reason as _reason
+from .text import show as _show
 
 
 def radii(r, n, rng):

@@ -62,14 +62,17 @@ reference page.
 import difflib
 import logging
 import math
-import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import tomllib
 
 from .packing import lattice_packing, radii, random_packing, read_packing
-from .text import fmt as _fmt, reason as _reason, show as _show, tname as _tname
+from .text import fmt as _fmt
+from .text import reason as _reason
+from .text import show as _show
+from .text import tname as _tname
 
 log = logging.getLogger(__name__)
 

@@ -1,4 +1,4 @@
-"""dem: the particle engine (DEM with signed-distance shapes, peridynamics to come).
+"""dem: the particle engine (DEM with signed-distance shapes; peridynamics in dem.peridynamics).
 
 A scene in a few lines::
 

@@ -1,0 +1,280 @@
+"""Compiled peridynamic kernels: bond pass, force pass, contact, and the time stepper.
+
+Every kernel is dimension-generic (``d`` is read from the arrays) and serves both
+materials (a scalar branch on the model code), so one compilation serves every scene.
+Forces are gathered per point from its own bonds (each bond is stored in both
+directions), so the sums are race-free and their order does not depend on anything
+but the family layout.
+"""
+
+import math
+
+import numpy as np
+
+from .._jit import kernel
+from .materials import P_ALPHA, P_C, P_KAPPA, P_MODEL, P_SCRIT, PMB_CODE
+
+#: status codes of the stepper
+OK, REBUILD, NONFINITE = 0, 1, 2
+
+
+@kernel
+def weighted_volume(start, nbr, length, omega, vol, m_out):
+    """``m_i = sum_j w |xi|^2 V_j`` over every bond (broken or not)."""
+    for i in range(start.size - 1):
+        s = 0.0
+        for b in range(start[i], start[i + 1]):
+            s += omega[b] * length[b] * length[b] * vol[nbr[b]]
+        m_out[i] = s
+
+
+@kernel
+def bond_pass(pos, start, nbr, length, omega, vol, qw, pw, params, broken, theta_out,
+              sdev_out):
+    """Break over-stretched bonds, then each point's dilation and deviatoric moment (LPS).
+
+    ``theta_i = sum_j w |xi| e V_j q_j`` and ``S_i = sum_j w e^d |xi| V_j``, with the
+    per-bond weights ``q = d / m_i`` (or its surface-corrected value) and ``p = 1 / m_i``
+    (``S_i`` is zero without the correction). Both directions of a bond see the same stretch bit for bit, so they
+    break in the same pass. Modified in place: ``broken``, ``theta_out``, ``sdev_out``.
+    """
+    n, d = pos.shape
+    s_crit = params[P_SCRIT]
+    lps = params[P_MODEL] != PMB_CODE
+    for i in range(n):
+        th = 0.0
+        for b in range(start[i], start[i + 1]):
+            if broken[b]:
+                continue
+            j = nbr[b]
+            r2 = 0.0
+            for k in range(d):
+                y = pos[j, k] - pos[i, k]
+                r2 += y * y
+            e = math.sqrt(r2) - length[b]
+            if e > s_crit * length[b]:
+                broken[b] = 1
+                continue
+            if lps:
+                th += omega[b] * length[b] * e * vol[j] * qw[b]
+        theta_out[i] = th
+    if not lps:
+        return
+    for i in range(n):
+        sd = 0.0
+        for b in range(start[i], start[i + 1]):
+            if broken[b]:
+                continue
+            j = nbr[b]
+            r2 = 0.0
+            for k in range(d):
+                y = pos[j, k] - pos[i, k]
+                r2 += y * y
+            e = math.sqrt(r2) - length[b]
+            sd += omega[b] * (e - theta_out[i] * length[b] / d) * length[b] * vol[j]
+        sdev_out[i] = sd
+
+
+@kernel
+def _lps_t(kap, alpha, d, theta, sdev, p, w, L, q, e):
+    """LPS scalar force state of one bond direction (see :mod:`.materials`)."""
+    a = alpha * p
+    return kap * theta * w * L * q + a * w * (e - theta * L / d) - a / d * sdev * w * L * q
+
+
+@kernel
+def force_pass(pos, start, nbr, twin, length, omega, vol, qw, pw, corr, theta, sdev, params,
+               broken, force_out):
+    """Peridynamic force [N] on every point, added to ``force_out``."""
+    n, d = pos.shape
+    lps = params[P_MODEL] != PMB_CODE
+    kap, alpha, c = params[P_KAPPA], params[P_ALPHA], params[P_C]
+    for i in range(n):
+        for b in range(start[i], start[i + 1]):
+            if broken[b]:
+                continue
+            j = nbr[b]
+            r2 = 0.0
+            for k in range(d):
+                y = pos[j, k] - pos[i, k]
+                r2 += y * y
+            r = math.sqrt(r2)
+            L = length[b]
+            e = r - L
+            if lps:
+                w = omega[b]
+                bt = twin[b]
+                t = (_lps_t(kap, alpha, d, theta[i], sdev[i], pw[b], w, L, qw[b], e)
+                     + _lps_t(kap, alpha, d, theta[j], sdev[j], pw[bt], w, L, qw[bt], e))
+            else:
+                t = c * 0.5 * (corr[i] + corr[j]) * e / L
+            f = t * vol[i] * vol[j] / r
+            for k in range(d):
+                force_out[i, k] += f * (pos[j, k] - pos[i, k])
+
+
+@kernel
+def energy_density(pos, start, nbr, length, omega, vol, pw, corr, theta, params, broken,
+                   w_out):
+    """Strain-energy density [J/m^3] of every point (``sum_i W_i V_i`` is the energy)."""
+    n, d = pos.shape
+    lps = params[P_MODEL] != PMB_CODE
+    kap, alpha, c = params[P_KAPPA], params[P_ALPHA], params[P_C]
+    for i in range(n):
+        w_i = 0.5 * kap * theta[i] * theta[i] if lps else 0.0
+        for b in range(start[i], start[i + 1]):
+            if broken[b]:
+                continue
+            j = nbr[b]
+            r2 = 0.0
+            for k in range(d):
+                y = pos[j, k] - pos[i, k]
+                r2 += y * y
+            L = length[b]
+            e = math.sqrt(r2) - L
+            if lps:
+                ed = e - theta[i] * L / d
+                w_i += 0.5 * alpha * pw[b] * omega[b] * ed * ed * vol[j]
+            else:
+                w_i += 0.25 * c * 0.5 * (corr[i] + corr[j]) * e * e / L * vol[j]
+        w_out[i] = w_i
+
+
+@kernel
+def bonded(start, nbr, broken, i, j):
+    """Whether ``i`` and ``j`` are joined by an intact bond (binary search in i's row)."""
+    lo, hi = start[i], start[i + 1]
+    while lo < hi:
+        mid = (lo + hi) // 2
+        if nbr[mid] < j:
+            lo = mid + 1
+        else:
+            hi = mid
+    return lo < start[i + 1] and nbr[lo] == j and broken[lo] == 0
+
+
+@kernel
+def contact_pass(pos, radius, start, nbr, broken, cpairs, walls, wnormal, kn, force_out):
+    """Elastic contact [N] between bodies not joined by an intact bond, and with walls.
+
+    ``cpairs`` (m, 2) are candidate pairs; a pair touches when its overlap
+    ``r_i + r_j - |x_j - x_i|`` is positive and pushes with ``kn * overlap``. ``walls``
+    are the rows of plane bodies (``pos`` a point on the plane, ``wnormal`` its normal);
+    a free body touches a wall when ``r_i - (x_i - p) . n > 0``. Returns the work-free
+    contact energy ``sum kn overlap^2 / 2`` [J].
+    """
+    n, d = pos.shape
+    energy = 0.0
+    for q in range(cpairs.shape[0]):
+        i, j = cpairs[q, 0], cpairs[q, 1]
+        r2 = 0.0
+        for k in range(d):
+            y = pos[j, k] - pos[i, k]
+            r2 += y * y
+        lim = radius[i] + radius[j]
+        if r2 >= lim * lim or bonded(start, nbr, broken, i, j):
+            continue
+        r = math.sqrt(r2)
+        ov = lim - r
+        f = kn * ov / r
+        energy += 0.5 * kn * ov * ov
+        for k in range(d):
+            fk = f * (pos[j, k] - pos[i, k])
+            force_out[i, k] -= fk
+            force_out[j, k] += fk
+    for a in range(walls.size):
+        w = walls[a]
+        for i in range(n):
+            if radius[i] <= 0.0:
+                continue
+            h = 0.0
+            for k in range(d):
+                h += (pos[i, k] - pos[w, k]) * wnormal[w, k]
+            ov = radius[i] - h
+            if ov > 0.0:
+                energy += 0.5 * kn * ov * ov
+                for k in range(d):
+                    fk = kn * ov * wnormal[w, k]
+                    force_out[i, k] += fk
+                    force_out[w, k] -= fk
+    return energy
+
+
+@kernel
+def forces(pos, radius, start, nbr, twin, length, omega, vol, qw, pw, corr, theta, sdev,
+           params, broken, cpairs, walls, wnormal, kn, bforce, scale, gravity, mass, fixed,
+           force_out):
+    """Every force of the current state into ``force_out`` (zeroed first)."""
+    n, d = pos.shape
+    for i in range(n):
+        for k in range(d):
+            force_out[i, k] = scale * bforce[i, k]
+            if not fixed[i]:
+                force_out[i, k] += mass[i] * gravity[k]
+    bond_pass(pos, start, nbr, length, omega, vol, qw, pw, params, broken, theta, sdev)
+    force_pass(pos, start, nbr, twin, length, omega, vol, qw, pw, corr, theta, sdev, params,
+               broken, force_out)
+    contact_pass(pos, radius, start, nbr, broken, cpairs, walls, wnormal, kn, force_out)
+
+
+@kernel
+def _damped(f, v, damping):
+    """Cundall's local damping: the force less ``damping |f|`` against the velocity."""
+    if damping > 0.0 and v != 0.0:
+        return f - damping * abs(f) * (1.0 if v > 0.0 else -1.0)
+    return f
+
+
+@kernel
+def step_chunk(n_steps, t0, dt, damping, pos, vel, radius, mass, fixed, start, nbr, twin,
+               length, omega, vol, qw, pw, corr, theta, sdev, params, broken, cpairs, walls,
+               wnormal, kn, bforce, prof_t, prof_v, gravity, pos_ref, half_skin, force,
+               status):
+    """Up to ``n_steps`` velocity-Verlet steps; returns the number done.
+
+    Per step: half kick with the force of the last step, drift (fixed bodies move with
+    their prescribed velocity), forces at the new positions (bond breaking, dilation,
+    bond forces, contact, body force times its profile at the new time, gravity), second
+    half kick; with ``damping``, both kicks use Cundall's local damping. A step after which a body has moved more than
+    ``half_skin`` since the contact list was built ends the chunk with ``REBUILD`` (the
+    step itself is complete); a non-finite state, or a body that moves more than its
+    radius in one step (a run blowing up), ends it with ``NONFINITE``.
+    """
+    n, d = pos.shape
+    status[0] = OK
+    status[1] = -1
+    for s in range(n_steps):
+        h = 0.5 * dt
+        for i in range(n):
+            if fixed[i]:
+                for k in range(d):
+                    pos[i, k] += dt * vel[i, k]
+            else:
+                for k in range(d):
+                    vel[i, k] += h * _damped(force[i, k], vel[i, k], damping) / mass[i]
+                    pos[i, k] += dt * vel[i, k]
+        t = t0 + (s + 1) * dt
+        scale = np.interp(t, prof_t, prof_v) if prof_t.size else 1.0
+        forces(pos, radius, start, nbr, twin, length, omega, vol, qw, pw, corr, theta, sdev,
+               params, broken, cpairs, walls, wnormal, kn, bforce, scale, gravity, mass,
+               fixed, force)
+        far = 0.0
+        for i in range(n):
+            if fixed[i]:
+                continue
+            m2 = 0.0
+            v2 = 0.0
+            for k in range(d):
+                vel[i, k] += h * _damped(force[i, k], vel[i, k], damping) / mass[i]
+                u = pos[i, k] - pos_ref[i, k]
+                m2 += u * u
+                v2 += vel[i, k] * vel[i, k]
+            if not (m2 < 1e300 and v2 * dt * dt <= radius[i] * radius[i]):
+                status[0] = NONFINITE
+                status[1] = i
+                return s + 1
+            far = max(far, m2)
+        if far > half_skin * half_skin:
+            status[0] = REBUILD
+            return s + 1
+    return n_steps

@@ -22,7 +22,7 @@ import os
 import h5py
 import numpy as np
 
-from dem.io.hdf5 import publish
+from dem.io.hdf5 import publish, read_bounded
 
 FORMAT = "hmm.checkpoint"
 VERSION = 1
@@ -67,7 +67,12 @@ def save(path, problem, step, solver, curve, micro_states):
 
 
 class Checkpoint:
-    """A checkpoint opened for a restart (read-only; close when done)."""
+    """A checkpoint opened for a restart (read-only; close when done).
+
+    Every problem with the file is a ValueError with a one-line message: not HDF5,
+    another format or problem, a missing part, an array of the wrong shape or dtype,
+    or a dataset declaring more data than the file holds (refused before reading).
+    """
 
     def __init__(self, path, problem):
         self.path = os.fspath(path)
@@ -77,48 +82,85 @@ class Checkpoint:
             self.f = h5py.File(self.path, "r")
         except OSError as err:
             raise ValueError(f"{self.path} is not a readable checkpoint ({err})") from None
+        self._solver = None
+        try:
+            self._open(problem)
+        except BaseException:
+            self.close()
+            raise
+
+    def _open(self, problem):
         f = self.f
-        tag = f.attrs.get("format")
-        if isinstance(tag, bytes):
-            tag = tag.decode()
-        if tag != FORMAT or f.attrs.get("version") != VERSION:
-            self.close()
+        tag = _text(f.attrs.get("format"))
+        version = f.attrs.get("version")
+        if tag != FORMAT or not isinstance(version, (int, np.integer)) \
+                or version != VERSION:
             raise ValueError(f"{self.path} is not an {FORMAT} file (version {VERSION})")
-        digest = f.attrs["problem"]
-        digest = digest.decode() if isinstance(digest, bytes) else str(digest)
-        if digest != problem_digest(problem):
-            self.close()
+        if _text(f.attrs.get("problem")) != problem_digest(problem):
             raise ValueError(f"{self.path} belongs to another problem (the problem file "
                              f"changed since it was written)")
-        self.step = int(f.attrs["step"])
+        step = f.attrs.get("step")
+        if not isinstance(step, (int, np.integer)) \
+                or not 0 <= step <= problem["load"]["steps"]:
+            raise ValueError(f"{self.path}: step {step!r} is not a load step of the "
+                             f"problem")
+        self.step = int(step)
+
+    def check(self, macro, curve_names):
+        """Read and check the solver state and the curve against ``macro`` (before
+        anything is restored or an output file changed); ValueError if unusable."""
+        try:
+            g = self.f["solver"]
+            n, gp, d = macro.n_dofs, macro.n_gp, macro.dim
+            solver = {}
+            for name, shape in (("u", (n,)), ("sigma", (gp, d, d)),
+                                ("tangent", (gp, d, d, d, d))):
+                solver[name] = self._array(g, name, shape, "f")
+            solver["iterations"] = self._array(g, "iterations", None, "iu").ravel()
+            for name, kind in (("t", float), ("cuts", int), ("trials", int)):
+                solver[name] = kind(g.attrs[name])
+            if not 0.0 <= solver["t"] <= 1.0:
+                raise ValueError(f"solver load factor {solver['t']} is outside [0, 1]")
+            curve = {}
+            for name in curve_names:
+                curve[name] = self._array(self.f["curve"], name, None, "fiu")
+            for g in range(macro.n_gp):
+                if not isinstance(self.f.get(f"micro/{g:06d}"), h5py.Group):
+                    raise ValueError(f"micro/{g:06d} is missing")
+        except (KeyError, TypeError, ValueError, OverflowError, OSError) as err:
+            raise ValueError(f"{self.path}: unusable checkpoint: "
+                             f"{' '.join(str(err).split())}") from None
+        self._solver, self._curve = solver, curve
+
+    def _array(self, group, name, shape, kinds):
+        ds = group[name]
+        if not isinstance(ds, h5py.Dataset) or ds.dtype.kind not in kinds or (
+                shape is not None and ds.shape != shape):
+            raise ValueError(f"{group.name.strip('/')}/{name} is "
+                             f"{getattr(ds, 'dtype', 'a group')}"
+                             f"{getattr(ds, 'shape', '')}, expected "
+                             f"{'numbers' if shape is None else shape}")
+        return read_bounded(ds, f"{group.name.strip('/')}/{name}")
 
     def restore_solver(self, solver):
-        g = self.f["solver"]
-        n, gp = solver.macro.n_dofs, solver.macro.n_gp
-        d = solver.macro.dim
-        for name, shape in (("u", (n,)), ("sigma", (gp, d, d)),
-                            ("tangent", (gp, d, d, d, d))):
-            if g[name].shape != shape:
-                raise ValueError(f"{self.path}: solver/{name} has shape {g[name].shape}, "
-                                 f"expected {shape}")
-        solver.u = g["u"][()]
-        solver.sigma = g["sigma"][()]
-        solver.tangent = g["tangent"][()]
-        solver.t = float(g.attrs["t"])
-        solver.cuts = int(g.attrs["cuts"])
-        solver.iterations = [int(x) for x in g["iterations"][()]]
-        solver.farm.n_trials = int(g.attrs["trials"])
+        """Set the solver's state from the checked checkpoint (:meth:`check`)."""
+        s = self._solver
+        solver.u, solver.sigma, solver.tangent = s["u"], s["sigma"], s["tangent"]
+        solver.t, solver.cuts = s["t"], s["cuts"]
+        solver.iterations = [int(x) for x in s["iterations"]]
+        solver.farm.n_trials = s["trials"]
 
     def curve(self):
-        out = {}
-        self.f["curve"].visititems(lambda name, obj: out.__setitem__(name, obj[()])
-                                   if isinstance(obj, h5py.Dataset) else None)
-        return out
+        """The checked load-displacement curve (:meth:`check`)."""
+        return dict(self._curve)
 
     def micro_state(self, g):
-        grp = self.f[f"micro/{g:06d}"]
+        """Gauss point ``g``'s committed state, ``{name: array}``."""
+        grp = self.f.get(f"micro/{g:06d}")
+        if not isinstance(grp, h5py.Group):
+            raise ValueError(f"{self.path}: micro/{g:06d} is missing")
         out = {}
-        grp.visititems(lambda name, obj: out.__setitem__(name, obj[()])
+        grp.visititems(lambda name, obj: out.__setitem__(name, read_bounded(obj))
                        if isinstance(obj, h5py.Dataset) else None)
         return out
 
@@ -126,3 +168,7 @@ class Checkpoint:
         if self.f is not None:
             self.f.close()
             self.f = None
+
+
+def _text(value):
+    return value.decode(errors="replace") if isinstance(value, bytes) else value

@@ -18,6 +18,7 @@
 :meth:`Output.close`.
 """
 
+import contextlib
 import logging
 import os
 import xml.etree.ElementTree as ET
@@ -81,16 +82,15 @@ class Output:
         self.every = int(every)
         self.path = self.dir / "fields.h5"
         self.frames = []  # (group name, load factor)
-        self.curve = {"load_factor": [], "iterations": [], "dem_points": []}
-        for b in self.boundaries:
-            self.curve[f"displacement/{b}"] = []
-            self.curve[f"force/{b}"] = []
+        self.curve = {k: [] for k in self.curve_names(self.boundaries)}
+        self.f, self._kept, self._closed = None, None, False
         if restart is not None:
             self._reopen(*restart)
             return
         if self.path.exists() and not overwrite:
             raise FileExistsError(f"{self.path} exists (pass --overwrite to replace it)")
         self.dir.mkdir(parents=True, exist_ok=True)
+        self._made_dir = not any(self.dir.iterdir())
         self.f = h5py.File(self.path, "w")
         mesh = macro.mesh
         pts = np.zeros((mesh.p.shape[1], 3))
@@ -103,21 +103,58 @@ class Output:
         self.f.create_dataset("gauss/points", data=macro.gauss_points())
         self.f.create_dataset("gauss/weights", data=macro.weights())
 
+    @staticmethod
+    def curve_names(boundaries):
+        """The series of the load-displacement curve (``/curve/`` of ``fields.h5``)."""
+        return ["load_factor", "iterations", "dem_points"] + [
+            f"{kind}/{b}" for b in boundaries for kind in ("displacement", "force")]
+
     def _reopen(self, step, curve):
         """Continue the file of an interrupted run from its checkpoint at ``step``:
-        frames written after it are dropped, the curve is the checkpoint's."""
+        frames written after it are dropped, the curve is the checkpoint's. The file
+        is checked here (ValueError if it is not this run's) and changed only by the
+        first :meth:`write` or :meth:`close`."""
         if not self.path.exists():
             raise FileNotFoundError(f"{self.path} is missing: cannot restart its run")
-        self.f = h5py.File(self.path, "a")
-        for name in list(self.f["steps"]):
-            if int(name) > step:
-                del self.f["steps"][name]
-        if "curve" in self.f:
-            del self.f["curve"]
-        self.frames = [(f"steps/{name}", float(self.f["steps"][name].attrs["load_factor"]))
-                       for name in sorted(self.f["steps"])]
+        try:
+            with h5py.File(self.path, "r") as f:
+                frames = {name: float(f["steps"][name].attrs["load_factor"])
+                          for name in f["steps"] if int(name) <= step}
+        except (OSError, KeyError, TypeError, ValueError, AttributeError) as err:
+            raise ValueError(f"{self.path} is not the output of this run, cannot "
+                             f"restart it ({' '.join(str(err).split())})") from None
+        self._kept = frames
+        self.frames = [(f"steps/{name}", frames[name]) for name in sorted(frames)]
         for k in self.curve:
             self.curve[k] = list(curve[k])
+
+    def _file(self):
+        """The open HDF5 file; a restarted one loses its later frames and its curve
+        on first use."""
+        if self.f is None:
+            self.f = h5py.File(self.path, "a")
+            for name in list(self.f["steps"]):
+                if name not in self._kept:
+                    del self.f["steps"][name]
+            if "curve" in self.f:
+                del self.f["curve"]
+        return self.f
+
+    def discard(self):
+        """End a run that never started (a failed set-up): a new ``fields.h5`` is
+        removed (with its directory if that was empty), a restarted one is left as
+        it was."""
+        if self._closed:
+            return
+        self._closed = True
+        if self.f is not None:
+            self.f.close()
+            self.f = None
+        if self._kept is None:
+            self.path.unlink(missing_ok=True)
+            if self._made_dir:
+                with contextlib.suppress(OSError):
+                    self.dir.rmdir()
 
     def write(self, step, solver, measures, iterations, force_frame=False):
         """Record step ``step`` of ``solver`` (committed state) and ``measures`` (the
@@ -135,7 +172,7 @@ class Output:
         if not (force_frame or step % self.every == 0):
             return
         name = f"steps/{step:05d}"
-        g = self.f.create_group(name)
+        g = self._file().create_group(name)
         g.attrs["step"] = step
         g.attrs["load_factor"] = solver.t
         g.attrs["iterations"] = iterations
@@ -169,14 +206,16 @@ class Output:
 
     def close(self):
         """Write the curve, the XDMF file and the plots; close the HDF5 file."""
-        if self.f is None:
+        if self._closed:
             return
+        self._closed = True
+        f = self._file()
         for k, v in self.curve.items():
-            self.f.create_dataset(f"curve/{k}", data=np.asarray(v, dtype=np.float64))
-        keys = [k for k in self.f[self.frames[0][0]]
-                if isinstance(self.f[self.frames[0][0]][k], h5py.Dataset)] \
+            f.create_dataset(f"curve/{k}", data=np.asarray(v, dtype=np.float64))
+        keys = [k for k in f[self.frames[0][0]]
+                if isinstance(f[self.frames[0][0]][k], h5py.Dataset)] \
             if self.frames else []
-        self.f.close()
+        f.close()
         self.f = None
         self._xdmf(keys)
         try:

@@ -60,6 +60,8 @@ from dem.io.scene import schema_markdown as _markdown
 POSITIVE = Range(0.0, lo_closed=False)
 NONNEGATIVE = Range(0.0)
 COMPONENTS = ("x", "y", "z")
+#: most elements of a structured mesh ([mesh] size and cells); each has Gauss points
+MAX_ELEMENTS = 10**6
 
 SCHEMA = {
     "mesh": Section(doc="The macro domain and its finite elements.", required=True, keys={
@@ -204,6 +206,9 @@ def validate_problem(data, source="<problem>", base_dir="."):
             ctx.fail("needs size and cells, or a mesh file", "[mesh]")
         if any(c != int(c) for c in m["cells"]):
             ctx.fail(f"cells must be integers, got {m['cells']}", "[mesh]")
+        if math.prod(int(c) for c in m["cells"]) > MAX_ELEMENTS:
+            ctx.fail(f"cells = {m['cells']} makes more than the {MAX_ELEMENTS} elements "
+                     f"a structured mesh may have", "[mesh]")
     elif m["size"] is not None or m["cells"] is not None:
         ctx.fail("takes a mesh file or size and cells, not both", "[mesh]")
     two_d = m["element"] in ("quad1", "quad2", "tri1", "tri2")

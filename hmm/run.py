@@ -69,6 +69,7 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     try:  # every rank opens the checkpoint: each reads its own points from it
         if restart:
             ck = Checkpoint(Path(directory) / "checkpoint.h5", problem)
+            ck.check(macro, Output.curve_names(supports.boundaries))
         if rank == 0:
             out = Output(directory, macro, supports.boundaries, problem["output"]["every"],
                          overwrite=overwrite, driven=driven,
@@ -85,10 +86,14 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     try:
         farm = build_farm(problem, macro)
         if ck is not None:
-            farm.load(ck.micro_state)
+            try:
+                farm.load(ck.micro_state)
+            except (KeyError, TypeError, IndexError) as err:
+                raise ValueError(f"{ck.path}: a micro state does not fit the problem "
+                                 f"({err})") from None
     except BaseException:
-        if out is not None:
-            out.close()
+        if out is not None:  # the run never started: leave no output
+            out.discard()
         raise
     finally:
         if ck is not None and rank != 0:

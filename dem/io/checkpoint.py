@@ -36,7 +36,7 @@ from ..boundary import PeriodicCell
 from ..neighbors import Box
 from ..simulation import Simulation
 from ..state import Bodies
-from .hdf5 import publish
+from .hdf5 import publish, read_bounded
 
 log = logging.getLogger(__name__)
 
@@ -148,6 +148,8 @@ def _read_bodies(path, group):
     dim = int(group.attrs["dim"])
     if "pos" not in group:
         raise ValueError(f"{path}: bodies/pos is missing")
+    if not isinstance(group["pos"], h5py.Dataset) or group["pos"].ndim != 2:
+        raise ValueError(f"{path}: bodies/pos must be an (n, {dim}) dataset")
     n = group["pos"].shape[0]
     arrays = {}
     for name, (tail, dtype) in _body_spec(dim).items():
@@ -170,7 +172,7 @@ def _checked(path, name, dataset, shape, dtype):
     if dataset.shape != tuple(shape) or dataset.dtype != dtype:
         raise ValueError(f"{path}: {name} is {dataset.dtype}{dataset.shape}, "
                          f"expected {dtype}{tuple(shape)}")
-    return np.ascontiguousarray(dataset[()])
+    return np.ascontiguousarray(read_bounded(dataset, name))
 
 
 def _open(path, fmt):
@@ -190,10 +192,10 @@ def _open(path, fmt):
         raise ValueError(f"{path} is not a readable {fmt} file ({err})") from None
     if isinstance(tag, bytes):
         tag = tag.decode()
-    if tag != fmt:
+    if not isinstance(tag, str) or tag != fmt:
         f.close()
         raise ValueError(f"{path} is not a {fmt} file (format tag {tag!r})")
-    if version != VERSION:
+    if not isinstance(version, (int, np.integer)) or version != VERSION:
         f.close()
         raise ValueError(f"{path}: {fmt} version {version} is not supported "
                          f"(need {VERSION})")
@@ -329,7 +331,7 @@ def load_checkpoint(path, model, observers=(), controllers=(), state_objects=())
     with _open(path, FORMAT) as f:
         try:
             state = _read_checkpoint(path, f)
-        except (KeyError, AttributeError, TypeError, OSError) as err:
+        except _MALFORMED as err:
             raise ValueError(f"{path}: malformed checkpoint ({err})") from None
     a = state["attrs"]
     box = state["box"]
@@ -362,6 +364,10 @@ def load_checkpoint(path, model, observers=(), controllers=(), state_objects=())
                         "restart will not repeat the original run", path, name)
     log.info("restarted from %s at step %d", path, sim.step)
     return sim
+
+
+#: what h5py and numpy raise on a file whose layout is not the one written here
+_MALFORMED = (KeyError, AttributeError, TypeError, IndexError, OSError)
 
 
 def _read_checkpoint(path, f):
@@ -445,7 +451,8 @@ def _read_checkpoint(path, f):
         box = Box(_checked(path, "box/lo", g["lo"], (d,), _F8),
                   _checked(path, "box/hi", g["hi"], (d,), _F8),
                   _checked(path, "box/periodic", g["periodic"], (d,), _B))
-    model = {k: v[()] for k, v in f["model"].items()} if "model" in f else {}
+    model = {k: read_bounded(v, f"model/{k}") for k, v in f["model"].items()} \
+        if "model" in f else {}
     return {"attrs": attrs, "bodies": bodies, "gravity": gravity,
             "wall_work": wall_work, "neighbors": neighbors, "contacts": contacts,
             "radius_ref": radius_ref, "box": box, "cellref": cellref, "model": model,
@@ -465,7 +472,7 @@ def read_group(path, name, max_elements=10**6):
         for k, v in g.items():
             if not isinstance(v, h5py.Dataset) or v.size > max_elements:
                 raise ValueError(f"{path}: /{name}/{k} is not a small dataset")
-            data[k] = v[()]
+            data[k] = read_bounded(v, f"/{name}/{k}")
     return {"attrs": attrs, "data": data}
 
 
@@ -492,7 +499,10 @@ def read_bodies(path):
     with _open(path, BODIES_FORMAT) as f:
         if "bodies" not in f:
             raise ValueError(f"{path}: no bodies group")
-        return _read_bodies(path, f["bodies"])
+        try:
+            return _read_bodies(path, f["bodies"])
+        except _MALFORMED as err:
+            raise ValueError(f"{path}: malformed bodies file ({err})") from None
 
 
 def write_last_good_state(path):

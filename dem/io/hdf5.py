@@ -67,6 +67,33 @@ FORMAT = "dem.h5writer"
 VERSION = 2  # 2: frames hold every particle (kind, surface/), not spheres only
 
 
+#: the most a stored dataset may inflate when read: deflate's limit is about 1032:1
+MAX_INFLATION = 1100
+
+
+def read_bounded(dataset, name=None):
+    """The data of an h5py ``dataset``, refused (ValueError, one line) before anything
+    is read or allocated when it declares more bytes than its file can hold.
+
+    A truncated or crafted file (a header claiming 10^12 elements) is caught here:
+    uncompressed data cannot exceed the file, compressed data ``MAX_INFLATION`` times
+    the file.
+    """
+    if not isinstance(dataset, h5py.Dataset):
+        raise ValueError(f"{dataset.file.filename}: {name or dataset.name} is not a "
+                         f"dataset")
+    path = dataset.file.filename
+    declared = int(dataset.size or 0) * dataset.dtype.itemsize
+    filtered = dataset.chunks is not None and \
+        dataset.id.get_create_plist().get_nfilters() > 0
+    limit = os.path.getsize(path) * (MAX_INFLATION if filtered else 1)
+    if declared > limit:
+        raise ValueError(f"{path}: {name or dataset.name} declares {dataset.shape} "
+                         f"{dataset.dtype} ({declared} bytes), more than the file can "
+                         f"hold: a truncated or corrupt file")
+    return dataset[()]
+
+
 def publish(tmp_path, path):
     """Atomically move a finished file ``tmp_path`` to ``path`` (fsync, then rename)."""
     with open(tmp_path, "rb+") as fh:

@@ -29,20 +29,54 @@ def lattice_packing(lo, hi, r, spacing, count, rng):
     elif spacing < 2.0 * r_max:
         raise ValueError(f"spacing must be >= 2 x the largest radius ({_fmt(2 * r_max)} m), "
                  f"got {_fmt(spacing)}")
-    n_axis = np.floor((hi - lo - 2.0 * r_max) / spacing * (1 + 1e-12)).astype(int) + 1
-    if np.any(n_axis < 1):
+    n_axis = np.floor((hi - lo - 2.0 * r_max) / spacing * (1 + 1e-12)) + 1.0  # float:
+    if np.any(n_axis < 1):                                    # a huge box cannot wrap
         raise ValueError(f"box lo..hi is too small for one particle of radius {_fmt(r_max)} m")
-    sites = int(np.prod(n_axis))
+    with np.errstate(over="ignore"):
+        sites = float(np.prod(n_axis))
     if count is None:
-        if sites > 10**7:
-            raise ValueError(f"the box holds {sites} lattice sites; set count")
-        count = sites
-    elif count > sites:
+        if sites > MAX_GENERATED:
+            raise ValueError(f"the box holds {sites:.4g} lattice sites; set count")
+        count = int(sites)
+    elif count > MAX_GENERATED:
+        raise ValueError(f"count = {count} exceeds the {MAX_GENERATED} particles a scene "
+                         f"may generate")
+    # the first `count` sites do not depend on axes longer than `count`
+    n_axis = np.minimum(n_axis, count).astype(int)
+    sites = int(np.prod(n_axis, dtype=float)) if sites > count else int(sites)
+    if count > sites:
         raise ValueError(f"count = {count} exceeds the {sites} lattice sites in the box "
                  f"({' x '.join(map(str, n_axis))} at spacing {_fmt(spacing)} m)")
     # x varies fastest, the last axis slowest: layers fill from lo upwards
     idx = np.stack(np.unravel_index(np.arange(count), n_axis[::-1])[::-1], axis=1)
     return lo + r_max + spacing * idx, radii(r, count, rng)
+
+
+#: most particles a scene may generate (the lattice and random generators)
+MAX_GENERATED = 10**7
+#: solid fraction beyond which random sequential addition cannot place disks (2D) or
+#: spheres (3D): the jamming limits 0.547 and 0.384
+RSA_LIMIT = {2: 0.547, 3: 0.384}
+
+
+def check_random_fits(lo, hi, r, count):
+    """Refuse (ValueError) a random packing that cannot be made, before anything is
+    allocated: more than :data:`MAX_GENERATED` particles, or ``count`` particles of
+    at least the smallest radius filling more of the box than random placement can.
+    """
+    if count > MAX_GENERATED:
+        raise ValueError(f"count = {count} exceeds the {MAX_GENERATED} particles a scene "
+                         f"may generate")
+    d = len(lo)
+    r_min = min(r) if isinstance(r, list) else r
+    ball = np.pi * r_min**2 if d == 2 else 4.0 / 3.0 * np.pi * r_min**3
+    with np.errstate(over="ignore"):
+        box = float(np.prod(np.asarray(hi, float) - np.asarray(lo, float)))
+    fraction = count * ball / box
+    if fraction > RSA_LIMIT[d]:
+        raise ValueError(f"count = {count} particles of radius >= {_fmt(r_min)} m fill "
+                         f"{fraction:.3g} of the box lo..hi; random placement stops at "
+                         f"about {RSA_LIMIT[d]}: enlarge lo..hi or lower count")
 
 
 def random_packing(lo, hi, radius, rng, attempts_per_particle=200):

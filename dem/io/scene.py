@@ -68,7 +68,13 @@ from pathlib import Path
 import numpy as np
 import tomllib
 
-from .packing import lattice_packing, radii, random_packing, read_packing
+from .packing import (
+    check_random_fits,
+    lattice_packing,
+    radii,
+    random_packing,
+    read_packing,
+)
 from .text import fmt as _fmt
 from .text import reason as _reason
 from .text import show as _show
@@ -494,6 +500,7 @@ def build_bodies(scene):
             if gen == "lattice":
                 pos, radius = lattice_packing(lo, hi, r, p["spacing"], n, rng)
             else:
+                check_random_fits(lo, hi, r, n)
                 radius = radii(r, n, rng)
                 pos = random_packing(lo, hi, radius, rng)
     except ValueError as exc:

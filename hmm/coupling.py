@@ -18,7 +18,8 @@ to ``t + dt``, in this order:
    cannot relax), is **cut**:
    ``farm.rollback()`` and the step is retried at half its size, down to
    ``min_step`` times the nominal step, after which :class:`SolverError` stops the
-   run (the last converged step has been written). Any other exception of a micro
+   run; the solver keeps the last converged state (:func:`hmm.run.run_problem`
+   writes its frame and marks ``fields.h5`` as stopped). Any other exception of a micro
    model (a bug, bad input) stops the run at once, naming the Gauss point.
 """
 
@@ -138,8 +139,9 @@ class Solver:
                 if dt < self.settings.min_step * nominal:
                     raise SolverError(
                         f"load step at t = {self.t:.6g} did not converge even at "
-                        f"{self.settings.min_step:g} x the step ({why}); the last "
-                        f"converged state is saved") from None
+                        f"the minimum step {self.settings.min_step:g} x {nominal:.4g} "
+                        f"(last try {h:.4g}: {why}); the solver holds the last "
+                        f"converged state (t = {self.t:.6g})") from None
                 continue
             self.iterations.append(its)
             dt = min(2.0 * dt, nominal)  # grow back after a cut

@@ -169,8 +169,28 @@ class Output:
             disp = np.array([u[macro.dofs(b, c)].mean() for c in range(d)])
             self.curve[f"displacement/{b}"].append(disp)
             self.curve[f"force/{b}"].append(reactions[b])
-        if not (force_frame or step % self.every == 0):
-            return
+        if force_frame or step % self.every == 0:
+            self._frame(step, solver, measures, iterations)
+
+    def stopped(self, step, solver, measures, iterations, message, partial=False):
+        """Record that the run stopped at ``solver``'s committed state, which is step
+        ``step``, or part of it (``partial``: cut sub-steps converged before the stop;
+        the curve gets that state too). Its field frame is written if the output
+        interval skipped it; the file's attributes ``stopped`` (the message),
+        ``last_converged_step`` and ``last_converged_load_factor`` say so."""
+        if partial:
+            self.write(step, solver, measures, iterations, force_frame=True)
+        elif not self.frames or self.frames[-1][0] != f"steps/{step:05d}":
+            self._frame(step, solver, measures, iterations)
+        f = self._file()
+        f.attrs["stopped"] = message
+        f.attrs["last_converged_step"] = int(step)
+        f.attrs["last_converged_load_factor"] = float(solver.t)
+        f.flush()
+
+    def _frame(self, step, solver, measures, iterations):
+        macro, d = self.macro, self.macro.dim
+        u = solver.u
         name = f"steps/{step:05d}"
         g = self._file().create_group(name)
         g.attrs["step"] = step

@@ -16,7 +16,7 @@ from dem.simulation import progress_bar
 
 from .checkpoint import Checkpoint
 from .checkpoint import save as save_checkpoint
-from .coupling import Solver, SolverSettings
+from .coupling import Solver, SolverError, SolverSettings
 from .farm import mpi_world
 from .io import Output
 from .problem import build_farm, build_loads, build_macro, validate_problem
@@ -140,7 +140,16 @@ def _solve(problem, macro, farm, supports, f_const, f_ramp, out, progress, say, 
                 if bar is not None:
                     bar.set_postfix_str(f"Newton {it}: |r|/|f| = {r:.1e}")
 
-            its = solver.advance(k / n - solver.t, on_iteration=show)
+            try:
+                its = solver.advance(k / n - solver.t, on_iteration=show)
+            except SolverError as err:
+                # cut sub-steps of step k may have converged before the stop
+                partial = solver.t > (k - 1) / n + 1e-12 / n
+                done = solver.iterations[-1] if solver.iterations else 0
+                out.stopped(k if partial else k - 1, solver, farm.measures(), done,
+                            str(err), partial=partial)
+                raise SolverError(f"{err}; that state (load factor {solver.t:.6g}) is "
+                                  f"the last frame of {out.path}") from err
             out.write(k, solver, farm.measures(), its, force_frame=(k == n))
             if (every_ck and k % every_ck == 0) or k == last < n:
                 save_checkpoint(out.dir / "checkpoint.h5", problem, k, solver, out.curve,

@@ -1,0 +1,187 @@
+"""The stability map's lines, each crossed by a small scene (docs/stability.md).
+
+- DEM: a step above the critical step is refused unless asked for, and then the run
+  blows up with a :class:`dem.SimulationError`; the refusal threshold is the two-body
+  limit, and a dense lattice is unstable below it already (a hexagonal lattice of disks
+  from ``1/sqrt(3)`` of it: six contacts per disk).
+- RVE: a relaxation that cannot finish within its step cap raises
+  :class:`dem.rve.RelaxationError` saying what to change.
+- Macro Newton: a load step too large is cut until it converges; a load past the
+  micro law's limit is cut down to ``min_step`` and stops with a
+  :class:`hmm.coupling.SolverError` naming the minimum step, the last converged state
+  kept and, in a run, written and marked in ``fields.h5``.
+- ADMM contact detection with too small an iteration cap stops the run naming the pair.
+
+(Peridynamics' step limit is tested in ``tests/dem/test_peridynamics.py``.)
+"""
+
+import math
+
+import h5py
+import numpy as np
+import pytest
+
+import dem
+from dem.neighbors import Box
+from dem.rve import RVE, RelaxationError
+from hmm.coupling import Solver, SolverError, SolverSettings, Supports
+from hmm.farm import SerialFarm
+from hmm.macro import Macro, structured_mesh
+from hmm.micro import Hyperbolic, lame
+
+R, RHO, KN = 0.01, 2500.0, 1e5
+
+
+def hex_lattice(side=4, squeeze=0.02, seed=0):
+    """Precompressed periodic hexagonal lattice of disks, random velocities (small
+    against the overlap: contacts stay closed)."""
+    a = 2.0 * R * (1.0 - squeeze)
+    pos = np.array([[(i + 0.5 * (j % 2)) * a, j * a * math.sqrt(3.0) / 2.0]
+                    for j in range(side) for i in range(side)])
+    bodies = dem.Bodies.spheres(pos, radius=R, density=RHO)
+    rng = np.random.default_rng(seed)
+    omega = math.sqrt(KN / bodies.mass[0])
+    bodies.vel[:] = rng.normal(0.0, 0.25 * squeeze * R * omega, bodies.vel.shape)
+    lo = -0.5 * a * np.ones(2)
+    box = Box(lo, lo + [side * a, side * a * math.sqrt(3.0) / 2.0], [True, True])
+    return bodies, box
+
+
+def lattice_sim(factor, **kw):
+    bodies, box = hex_lattice()
+    dt_crit = dem.Simulation(bodies.copy(), dem.LinearSpring(kn=KN), box=box).dt_crit
+    return dem.Simulation(bodies, dem.LinearSpring(kn=KN), box=box, dt=factor * dt_crit,
+                          threads=1, **kw)
+
+
+def test_dt_above_critical_is_refused_then_blows_up():
+    with pytest.raises(ValueError, match="exceeds the critical time step"):
+        lattice_sim(1.05)
+    sim = lattice_sim(1.05, allow_unstable_dt=True)
+    with pytest.raises(dem.SimulationError, match=r"critical step"):
+        sim.run(2000)
+
+
+def test_dense_lattice_is_unstable_below_the_refusal_threshold():
+    """The refusal threshold is sqrt(2 m / k): two bodies, one spring. Six contacts per
+    disk stiffen the fastest mode: measured limit 0.5-0.55 dt_crit (2 / omega_max =
+    0.577 dt_crit). At 0.4 the energy stays bounded, at 0.7 (accepted without
+    ``allow_unstable_dt``) the lattice blows up."""
+    from dem.observers import elastic_energy, kinetic_energy
+
+    sim = lattice_sim(0.4)
+    e0, k0 = sum(kinetic_energy(sim.bodies)) + elastic_energy(sim), \
+        sum(kinetic_energy(sim.bodies))
+    err = 0.0
+    for _ in range(10):
+        sim.run(25)
+        err = max(err, abs(sum(kinetic_energy(sim.bodies)) + elastic_energy(sim) - e0))
+    assert err < 0.5 * k0
+    sim = lattice_sim(0.7)
+    with pytest.raises(dem.SimulationError):
+        sim.run(2000)
+
+
+# --------------------------------------------------------------------------- RVE
+def test_relaxation_that_cannot_finish_says_what_to_change():
+    """Nine disks of a precompressed square lattice, jostled out of equilibrium:
+    undamped, they cannot relax in 200 steps; damped, they do."""
+    r, d0 = 1e-3, 1e-6
+    a = 2.0 * r - d0
+    axes = [(np.arange(3) + 0.5) * a] * 2
+    pos = np.stack(np.meshgrid(*axes, indexing="ij"), -1).reshape(-1, 2)
+    pos += np.random.default_rng(1).normal(0.0, 0.2 * d0, pos.shape)
+
+    def rve(damping, cap):
+        bodies = dem.Bodies.spheres(pos, radius=r, density=2650.0)
+        return RVE(bodies, dem.LinearSpring(kn=1e8), dem.boundary.PeriodicCell([3 * a] * 2),
+                   damping=damping, max_relax_steps=cap)
+
+    deps = np.diag([-1e-4, 0.0])
+    with pytest.raises(RelaxationError, match=r"did not relax within 200 steps.*"
+                       r"lower the strain increment, raise damping or max_relax_steps"):
+        rve(0.0, 200).apply_strain(deps)
+    done = rve(0.5, 20_000)
+    done.apply_strain(deps)
+    assert done.last_relax_steps < 20_000
+
+
+# --------------------------------------------------------------------------- Newton
+E, NU, GAMMA_REF = 1e6, 0.3, 1e-3
+Q_LIM = 2.0 * lame(E, NU)[1] * GAMMA_REF  # uniaxial limit of the hyperbolic law
+
+
+def pressed_block(level, min_step=1.0 / 16.0):
+    """A block on rollers under a top pressure ``level x Q_LIM``, ramped."""
+    macro = Macro(structured_mesh("quad1", [1.0, 1.0], [1, 1]), "quad1")
+    farm = SerialFarm([Hyperbolic(E, NU, GAMMA_REF) for _ in range(macro.n_gp)])
+    dofs = np.unique(np.concatenate([macro.dofs("left", 0), macro.dofs("bottom", 1)]))
+    return Solver(macro, farm, Supports(dofs, np.zeros(dofs.size)),
+                  f_ramp=macro.pressure_force("top", level * Q_LIM),
+                  settings=SolverSettings(min_step=min_step))
+
+
+def test_newton_cuts_a_large_step_and_converges():
+    solver = pressed_block(0.9)
+    solver.advance(1.0)
+    assert solver.t == pytest.approx(1.0) and solver.cuts >= 1
+
+
+@pytest.mark.filterwarnings("ignore:Matrix is exactly singular")
+def test_newton_past_the_limit_load_stops_at_the_minimum_step():
+    solver = pressed_block(1.05)
+    with pytest.raises(SolverError, match=r"minimum step 0\.0625 x 1 .*holds the last "
+                                          r"converged state"):
+        solver.advance(1.0)
+    # stopped just short of the limit, t_lim = 1 / 1.05, in a consistent state
+    assert 0.85 < solver.t < 1.0 / 1.05
+    assert np.all(np.isfinite(solver.u)) and solver.cuts >= 4
+    np.testing.assert_allclose(solver.sigma, solver.farm.stress(), rtol=1e-12)
+
+
+@pytest.mark.filterwarnings("ignore:Matrix is exactly singular")
+def test_a_stopped_run_writes_and_marks_its_last_converged_state(tmp_path):
+    from hmm.problem import validate_problem
+    from hmm.run import run_problem
+
+    problem = validate_problem({
+        "mesh": {"dim": 2, "element": "quad1", "size": [1.0, 1.0], "cells": [1, 1]},
+        "dirichlet": [{"boundary": "bottom", "component": "y", "value": 0.0},
+                      {"boundary": "left", "component": "x", "value": 0.0}],
+        "pressure": [{"boundary": "top", "value": 1.05 * Q_LIM, "ramp": True}],
+        "load": {"steps": 4},
+        "micro": {"model": "hyperbolic", "young": E, "poisson": NU,
+                  "gamma_ref": GAMMA_REF},
+        "solver": {"min_step": 1.0 / 16.0},
+        "output": {"every": 3},
+    }, source="<test>")
+    with pytest.raises(SolverError, match=r"last frame of .*fields\.h5"):
+        run_problem(problem, tmp_path / "out")
+    with h5py.File(tmp_path / "out" / "fields.h5") as f:
+        t = f.attrs["last_converged_load_factor"]
+        assert 0.75 < t < 1.0 / 1.05  # step 4 was partly done when it stopped
+        assert "minimum step" in f.attrs["stopped"]
+        last = f[f"steps/{f.attrs['last_converged_step']:05d}"]
+        assert last.attrs["load_factor"] == t
+        assert f["curve/load_factor"][-1] == t
+
+
+# --------------------------------------------------------------------------- ADMM
+def test_admm_with_too_small_a_cap_names_the_pair():
+    """Two pentagons under ADMM detection (the loop of the polygon checkpoint test):
+    one iteration cannot reach 1e-8, warm or cold; the default cap can."""
+    law = dem.LinearSpring(kn=1e5, kt=5e4, mu=0.4, restitution=0.5)
+
+    def pair(cap):
+        b = dem.Bodies.empty(2)
+        b.add_shapes(dem.ConvexPolygon.regular(5, 0.01), [[0.0, 0.0], [0.0195, 0.004]],
+                     2500.0, rot=[0.3, 1.1], vel=[[0.1, 0.0], [-0.1, 0.0]])
+        return dem.Simulation(b, law, detection="admm", admm_max_iter=cap, threads=1)
+
+    with pytest.raises(dem.SimulationError,
+                       match=r"between bodies 0 and 1 did not converge in 1 ADMM "
+                             r"iterations, warm or cold.*raise admm_max_iter"):
+        pair(1).run(100)
+    sim = pair(200)
+    sim.run(100)
+    assert sim.iters.max() > 1

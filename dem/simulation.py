@@ -35,6 +35,10 @@ log = logging.getLogger(__name__)
 #: (docs/performance.md): the largest factor whose binary-collision errors, averaged
 #: over where in a step contacts start, stay below 1% (about 22 steps per contact)
 DT_FACTOR = 0.07
+#: steps above this fraction of the two-body critical step are refused: a close-packed
+#: assembly (12 contacts per sphere) is unstable from 0.5 x, a hexagonal one (6 per
+#: disk) from 0.55 x (docs/stability.md)
+STABLE_FACTOR = 0.45
 #: the step loop evaluates the Verlet pairs within this fraction of the skin (the
 #: inner list, refreshed from the Verlet list when a body has moved half of it)
 INNER_SKIN = 0.05
@@ -80,8 +84,9 @@ class Simulation:
     model : ContactModel or Law
         Contact laws (a bare :class:`~dem.contact.laws.Law` acts on every pair).
     dt : float, optional
-        Time step [s]; default ``DT_FACTOR * dt_crit``. A step above the critical step
-        is refused unless ``allow_unstable_dt=True``.
+        Time step [s]; default ``DT_FACTOR * dt_crit``. A step above ``STABLE_FACTOR *
+        dt_crit`` (the measured limit of a close packing) is refused unless
+        ``allow_unstable_dt=True``.
     gravity : (d,) array_like, optional
         Gravitational acceleration [m/s^2].
     damping : float
@@ -131,11 +136,12 @@ class Simulation:
         dt = float(dt)
         if not (dt > 0.0 and math.isfinite(dt)):
             raise ValueError(f"dt must be positive and finite, got {dt}")
-        if dt > self.dt_crit and not allow_unstable_dt:
+        if dt > STABLE_FACTOR * self.dt_crit and not allow_unstable_dt:
             raise ValueError(
-                f"dt = {dt:.4g} s exceeds the critical time step {self.dt_crit:.4g} s "
-                f"(lightest body {m_min:.4g} kg, stiffest contact {k_max:.4g} N/m); "
-                f"pass allow_unstable_dt=True to run anyway")
+                f"dt = {dt:.4g} s exceeds the critical time step of a packing, "
+                f"{STABLE_FACTOR:g} x the two-body limit {self.dt_crit:.4g} s (lightest "
+                f"body {m_min:.4g} kg, stiffest contact {k_max:.4g} N/m; close-packed "
+                f"bodies blow up from 0.5 x); pass allow_unstable_dt=True to run anyway")
         self.dt = dt
         g = np.zeros(self.dim) if gravity is None else np.asarray(gravity, dtype=np.float64)
         if g.shape != (self.dim,):

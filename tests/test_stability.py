@@ -62,11 +62,11 @@ def test_dt_above_critical_is_refused_then_blows_up():
         sim.run(2000)
 
 
-def test_dense_lattice_is_unstable_below_the_refusal_threshold():
-    """The refusal threshold is sqrt(2 m / k): two bodies, one spring. Six contacts per
+def test_dense_lattice_sets_the_refusal_threshold():
+    """dt_crit = sqrt(2 m / k) is the limit of two bodies on one spring. Six contacts per
     disk stiffen the fastest mode: measured limit 0.5-0.55 dt_crit (2 / omega_max =
-    0.577 dt_crit). At 0.4 the energy stays bounded, at 0.7 (accepted without
-    ``allow_unstable_dt``) the lattice blows up."""
+    0.577 dt_crit), twelve per sphere 0.5; steps above STABLE_FACTOR = 0.45 dt_crit are
+    refused. At 0.4 the energy stays bounded; at 0.7, forced, the lattice blows up."""
     from dem.observers import elastic_energy, kinetic_energy
 
     sim = lattice_sim(0.4)
@@ -77,7 +77,10 @@ def test_dense_lattice_is_unstable_below_the_refusal_threshold():
         sim.run(25)
         err = max(err, abs(sum(kinetic_energy(sim.bodies)) + elastic_energy(sim) - e0))
     assert err < 0.5 * k0
-    sim = lattice_sim(0.7)
+    assert dem.simulation.STABLE_FACTOR < 0.5
+    with pytest.raises(ValueError, match="exceeds the critical time step"):
+        lattice_sim(0.7)
+    sim = lattice_sim(0.7, allow_unstable_dt=True)
     with pytest.raises(dem.SimulationError):
         sim.run(2000)
 

@@ -29,10 +29,10 @@ from pathlib import Path
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
 
-import dem  # noqa: E402
-from dem import peridynamics as pd  # noqa: E402
+import dem
+from dem import peridynamics as pd
 
 SPACING = 0.00025                 # lattice spacing [m]
 RADIUS, HEIGHT = 0.005, 0.005     # cylinder along y [m]
@@ -122,7 +122,7 @@ def lammps(exe):
                              r"with (\d+) atoms", out)
             times.append(float(loop.group(1)) / STEPS)
     last = [ln.split() for ln in out.splitlines() if ln.strip().startswith(str(STEPS))]
-    step, ke, dmg = last[-1][:3]
+    _, ke, dmg = last[-1][:3]
     # atom_style peri keeps the density as the mass: its kinetic energy is per volume
     return {"points": int(loop.group(4)), "s_per_step": statistics.median(times),
             "kinetic_energy": float(ke) * SPACING**3, "mean_damage": float(dmg)}

@@ -3,13 +3,14 @@
 Every kernel is dimension-generic (``d`` is read from the arrays) and serves both
 materials (a scalar branch on the model code), so one compilation serves every scene.
 Forces are gathered per point from its own bonds (each bond is stored in both
-directions), so the sums are race-free and their order does not depend on anything
-but the family layout.
+directions), so the bond passes run in parallel over points without races, and their
+sums, in family order, do not depend on the number of threads.
 """
 
 import math
 
 import numpy as np
+from numba import prange
 
 from .._jit import kernel
 from .materials import P_ALPHA, P_C, P_KAPPA, P_MODEL, P_SCRIT, PMB_CODE
@@ -28,7 +29,7 @@ def weighted_volume(start, nbr, length, omega, vol, m_out):
         m_out[i] = s
 
 
-@kernel
+@kernel(parallel=True)
 def bond_pass(pos, start, nbr, length, omega, vol, qw, pw, params, broken, theta_out,
               sdev_out):
     """Break over-stretched bonds, then each point's dilation and deviatoric moment (LPS).
@@ -41,7 +42,7 @@ def bond_pass(pos, start, nbr, length, omega, vol, qw, pw, params, broken, theta
     n, d = pos.shape
     s_crit = params[P_SCRIT]
     lps = params[P_MODEL] != PMB_CODE
-    for i in range(n):
+    for i in prange(n):
         th = 0.0
         for b in range(start[i], start[i + 1]):
             if broken[b]:
@@ -60,7 +61,7 @@ def bond_pass(pos, start, nbr, length, omega, vol, qw, pw, params, broken, theta
         theta_out[i] = th
     if not lps:
         return
-    for i in range(n):
+    for i in prange(n):
         sd = 0.0
         for b in range(start[i], start[i + 1]):
             if broken[b]:
@@ -82,14 +83,14 @@ def _lps_t(kap, alpha, d, theta, sdev, p, w, L, q, e):
     return kap * theta * w * L * q + a * w * (e - theta * L / d) - a / d * sdev * w * L * q
 
 
-@kernel
+@kernel(parallel=True)
 def force_pass(pos, start, nbr, twin, length, omega, vol, qw, pw, corr, theta, sdev, params,
                broken, force_out):
     """Peridynamic force [N] on every point, added to ``force_out``."""
     n, d = pos.shape
     lps = params[P_MODEL] != PMB_CODE
     kap, alpha, c = params[P_KAPPA], params[P_ALPHA], params[P_C]
-    for i in range(n):
+    for i in prange(n):
         for b in range(start[i], start[i + 1]):
             if broken[b]:
                 continue

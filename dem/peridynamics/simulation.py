@@ -9,10 +9,11 @@ elastic contact, so fragments collide as bodies and a sphere can strike a plate.
 
 import math
 
+import numba
 import numpy as np
 
 from ..shapes import Shape
-from ..simulation import SimulationError, progress_bar
+from ..simulation import PARALLEL_MIN_BODIES, SimulationError, progress_bar
 from .kernels import (
     NONFINITE,
     REBUILD,
@@ -86,11 +87,14 @@ class PDSimulation:
         Verlet skin of the contact list; default 0.3 dx.
     observers : sequence
         Called after steps when their trigger fires (as for :class:`dem.Simulation`).
+    threads : int, optional
+        Threads for the bond passes; default all of numba's for scenes of at least
+        ``PARALLEL_MIN_BODIES`` bodies, else 1. Results do not depend on it.
     """
 
     def __init__(self, bodies, material, points, horizon, cut=None, dt=None, damping=0.0,
                  gravity=None, contact_kn=None, skin=None, observers=(),
-                 allow_unstable_dt=False):
+                 allow_unstable_dt=False, threads=None):
         self.bodies = b = bodies
         self.dim = d = b.dim
         self.material = material
@@ -150,6 +154,9 @@ class PDSimulation:
         self.skin = 0.3 * self.dx if skin is None else float(skin)
         self.walls = np.flatnonzero(b.kind == Shape.PLANE).astype(np.int64)
         self.observers = list(observers)
+        if threads is None:
+            threads = numba.config.NUMBA_NUM_THREADS if b.n >= PARALLEL_MIN_BODIES else 1
+        self.threads = max(1, min(int(threads), numba.config.NUMBA_NUM_THREADS))
         self.step = 0
         self.time = 0.0
         self._status = np.zeros(2, np.int64)
@@ -190,9 +197,10 @@ class PDSimulation:
         self._primed = False
 
     # ------------------------------------------------------------------ stability
-    def critical_time_step(self, iterations=200, seed=0):
+    def critical_time_step(self, iterations=400, seed=0):
         """Critical time step [s]: ``2 / omega_max`` of the bonds, by power iteration on
-        the mass-scaled stiffness at the reference state, and ``sqrt(2 m_min / kn)``
+        the mass-scaled stiffness at the reference state (until its Rayleigh quotient
+        changes by less than 1e-7, at most ``iterations``), and ``sqrt(2 m_min / kn)``
         of the contacts; the smaller."""
         b = self.bodies
         free = (~b.is_fixed) & (b.kind != Shape.PLANE)
@@ -224,8 +232,10 @@ class PDSimulation:
                    np.zeros_like(f.broken), nothing, np.zeros(0, np.int64), b.normal, 0.0, np.zeros_like(x0), 0.0,
                    np.zeros(self.dim), b.mass, np.ones(b.n, np.uint8), out)
             w = -scale * out / eps
-            lam = float((w * v).sum() / (v * v).sum())
+            lam_old, lam = lam, float((w * v).sum() / (v * v).sum())
             v = w
+            if abs(lam - lam_old) < 1e-7 * abs(lam):  # the Rayleigh quotient has settled
+                break
         return lam
 
     # ------------------------------------------------------------------ running
@@ -272,6 +282,8 @@ class PDSimulation:
         n_steps = int(n_steps)
         if n_steps < 0:
             raise ValueError("n_steps must be >= 0")
+        threads_before = numba.get_num_threads()
+        numba.set_num_threads(self.threads)
         self.prime()
         end = self.step + n_steps
         bar = progress_bar(n_steps, progress)
@@ -306,6 +318,7 @@ class PDSimulation:
                     if o.trigger(self.step):
                         o(self)
         finally:
+            numba.set_num_threads(threads_before)
             if bar is not None:
                 bar.close()
 
@@ -341,6 +354,40 @@ class PDSimulation:
         bond_pass(b.pos, f.start, f.nbr, f.length, self.omega, self.vol, self.qw, self.pw,
                   params, f.broken.copy(), theta, np.zeros(b.n))
         return theta
+
+    def deformation_gradient(self):
+        """Nonlocal deformation gradient of every point, (n, d, d): ``F_i = (sum_j w Y ⊗ xi
+        V_j) K_i^-1`` with the shape tensor ``K_i = sum_j w xi ⊗ xi V_j``, over the point's
+        intact bonds (post-processing; the identity where a point has too few bonds)."""
+        b, f = self.bodies, self.family
+        d = self.dim
+        own = f.owner()
+        keep = f.broken == 0
+        wv = (self.omega * self.vol[f.nbr])[keep]
+        xi = f.xi[keep]
+        y = b.pos[f.nbr[keep]] - b.pos[own[keep]]
+        shape = np.zeros((b.n, d, d))
+        np.add.at(shape, own[keep], wv[:, None, None] * xi[:, :, None] * xi[:, None, :])
+        moment = np.zeros((b.n, d, d))
+        np.add.at(moment, own[keep], wv[:, None, None] * y[:, :, None] * xi[:, None, :])
+        ok = np.linalg.cond(shape) < 1e8
+        F = np.broadcast_to(np.eye(d), (b.n, d, d)).copy()
+        F[ok] = moment[ok] @ np.linalg.inv(shape[ok])
+        return F
+
+    def stress(self):
+        """Cauchy stress of every point, (n, d, d) [Pa], from the small strain
+        ``sym(F) - I`` of :meth:`deformation_gradient` and the material's elastic
+        constants (plane strain or stress in 2D): a post-processing estimate, the
+        classical stress the local deformation would carry."""
+        d = self.dim
+        F = self.deformation_gradient()
+        eps = 0.5 * (F + F.transpose(0, 2, 1)) - np.eye(d)
+        mat = self.material
+        mu = mat.E / (2.0 * (1.0 + mat.nu))
+        lam = mat.kappa(d) - 2.0 * mu / d  # the dimension's own Lame constant
+        tr = np.trace(eps, axis1=1, axis2=2)
+        return lam * tr[:, None, None] * np.eye(d) + 2.0 * mu * eps
 
     def strain_energy(self):
         """Elastic energy of the bonds [J]."""

@@ -11,6 +11,7 @@ E, RHO, DX = 1e9, 1000.0, 0.01
 
 
 def plate(lo, hi, material, horizon=3.0, cut=None, dx=DX, **kw):
+    kw.setdefault("threads", 1)  # small scenes, shared cores: one thread unless told
     b = dem.Bodies.empty(len(lo))
     ids = pd.add_points(b, pd.lattice(lo, hi, dx), dx, RHO, thickness=0.01)
     return pd.PDSimulation(b, material, ids, horizon * dx, cut=cut, **kw)
@@ -246,3 +247,86 @@ def test_docs_first_plate_runs_and_cracks():
     scope = {"print": lambda *a: None}
     exec(compile(code, "docs/peridynamics.md", "exec"), scope)  # noqa: S102 (our own docs)
     assert scope["sim"].damage().max() > 0.0
+
+
+@pytest.mark.parametrize("corrected,tol", [(True, 0.03), (False, 0.15)])
+def test_elastic_wave_travels_at_the_bar_speed(corrected, tol):
+    """A right-going Gaussian pulse (width 0.05 m, 10 x the horizon) in a bar 1 m x 3 cm,
+    dx = 5 mm: its peak moves at sqrt(E / rho) within 3% with the surface correction
+    (1.3% measured) and 8.6% too fast without it."""
+    dx, E_, rho = 0.005, 1e9, 1000.0
+    b = dem.Bodies.empty(2)
+    ids = pd.add_points(b, pd.lattice([0, 0], [1.0, 0.03], dx), dx, rho, thickness=0.01)
+    mat = pd.LPS(E=E_, nu=0.3, density=rho, plane="stress", surface_correction=corrected)
+    sim = pd.PDSimulation(b, mat, ids, 3 * dx, threads=1)
+    c = np.sqrt(E_ / rho)
+    x = sim.x0[:, 0]
+    g = np.exp(-(((x - 0.25) / 0.05) ** 2))
+    b.pos[:, 0] += 1e-6 * g
+    b.vel[:, 0] = c * 1e-6 * g * 2 * (x - 0.25) / 0.05**2  # v = -c du/dx: right-going
+    cols = np.unique(x)
+    times, peaks = [], []
+    for _ in range(20):
+        sim.run(7)
+        vx = np.array([b.vel[x == cc, 0].mean() for cc in cols])
+        i = int(np.argmax(vx))
+        y0, y1, y2 = vx[i - 1], vx[i], vx[i + 1]
+        times.append(sim.time)
+        peaks.append(cols[i] + 0.5 * (y0 - y2) / (y0 - 2 * y1 + y2) * dx)
+    times, peaks = np.array(times), np.array(peaks)
+    inside = (peaks > 0.35) & (peaks < 0.75)
+    speed = np.polyfit(times[inside], peaks[inside], 1)[0]
+    assert inside.sum() >= 10
+    if corrected:
+        assert speed == pytest.approx(c, rel=tol)
+    else:
+        assert 0.03 < speed / c - 1.0 < tol
+
+
+def test_stress_of_a_homogeneous_deformation_is_hookes():
+    """The nonlocal deformation gradient is exact for an affine field, at every point
+    with enough bonds, surface points included."""
+    mat = pd.LPS(E=E, nu=0.3, density=RHO, plane="stress")
+    sim = plate([0, 0], [0.08, 0.06], mat)
+    eps = np.array([[2e-4, 5e-5], [5e-5, -1e-4]])
+    sim.bodies.pos[:] = sim.x0 @ (np.eye(2) + eps).T
+    lam = E * 0.3 / (1 - 0.3**2)  # plane stress
+    mu = E / 2.6
+    exact = lam * np.trace(eps) * np.eye(2) + 2 * mu * eps
+    np.testing.assert_allclose(sim.stress(), np.broadcast_to(exact, (sim.bodies.n, 2, 2)),
+                               rtol=1e-8, atol=1e-8 * np.abs(exact).max())
+
+
+def test_kirsch_concentration_is_bracketed_and_converges():
+    """Plate with a hole (benchmarks/pd_kirsch.py, small): the point stress next to the
+    hole is below the elastic concentration (3.14 for this width) and rises as dx and
+    delta shrink; the Kirsch-profile fit outside the horizon is above it, falls, and is
+    within 10% at a / dx = 8."""
+    import runpy
+    from pathlib import Path
+
+    bench = runpy.run_path(str(Path(__file__).resolve().parents[2] / "benchmarks" /
+                               "pd_kirsch.py"), run_name="bench")
+    coarse = bench["concentration"](0.02, 3.0, scale=0.5, threads=1)
+    fine = bench["concentration"](0.0125, 3.0, scale=0.5, threads=1)
+    assert coarse[0] < fine[0] < 3.14 < fine[1] < coarse[1]
+    assert fine[1] == pytest.approx(3.14, rel=0.1)
+
+
+def test_thread_count_does_not_change_a_breaking_run():
+    import numba
+
+    if numba.config.NUMBA_NUM_THREADS < 2:
+        pytest.skip("needs NUMBA_NUM_THREADS >= 2 to compare 1 and 2 threads")
+    runs = []
+    for threads in (1, 2):
+        mat = pd.LPS(E=E, nu=0.3, density=RHO, s_crit=2e-3, surface_correction=True)
+        sim = plate([0, 0], [0.1, 0.08], mat, cut=pd.crack([0.0, 0.04], [0.04, 0.04]),
+                    threads=threads)
+        sim.bodies.vel[:] = 2.0 * np.random.default_rng(3).standard_normal(
+            sim.bodies.vel.shape)
+        sim.run(200)
+        assert sim.family.broken.any()
+        runs.append((sim.bodies.pos.copy(), sim.family.broken.copy()))
+    np.testing.assert_array_equal(runs[0][0], runs[1][0])
+    np.testing.assert_array_equal(runs[0][1], runs[1][1])

@@ -17,10 +17,12 @@ elastic contact. Bonded Euler-Bernoulli beams between rigid bodies are in
 :mod:`.beams`. See ``docs/peridynamics.md`` for the equations.
 """
 
+from .beam_lattice import lattice_cantilever, lattice_deflection
 from .beams import BeamBonds, BeamStructure, cantilever, cantilever_deflection
 from .lattice import Family, crack, lattice
 from .materials import LPS, PMB
 from .simulation import DT_FACTOR, PDSimulation, add_points
 
 __all__ = ["DT_FACTOR", "LPS", "PMB", "BeamBonds", "BeamStructure", "Family", "PDSimulation",
-           "add_points", "cantilever", "cantilever_deflection", "crack", "lattice"]
+           "add_points", "cantilever", "cantilever_deflection", "crack", "lattice",
+           "lattice_cantilever", "lattice_deflection"]

@@ -132,3 +132,36 @@ def test_ex03_ex04_energy_only_dissipated(name, request):
     # measured at the small size: 17 % (ex03) and 4.2 % (ex04) dissipated in 1.5 s
     assert ex["dissipated"] > (0.05 if name == "ex03" else 0.02)
     assert ex["n_moving"] >= 3  # the shooter and at least two it hit
+
+
+# ------------------------------------------------------------------ peridynamic plate
+@pytest.fixture(scope="module")
+def pd_plate(tmp_path_factory):
+    out = tmp_path_factory.mktemp("pd_plate")
+    res = run_example("pd_plate_hole")["run"](31, out=str(out), figure=str(out / "p.png"))
+    res["out"] = out
+    return res
+
+
+def test_pd_plate_breaks_first_at_the_hole_tips(pd_plate):
+    first = pd_plate["first_broken"]
+    tips = np.array([[0.5, 0.35], [0.5, 0.65]])
+    dist = np.linalg.norm(first[:, None, :] - tips[None], axis=2).min(axis=1)
+    assert np.all(dist < pd_plate["sim"].horizon)
+
+
+def test_pd_plate_splits_in_two_and_the_halves_collide_without_overlap(pd_plate):
+    assert pd_plate["split"]
+    gaps, dx = pd_plate["gaps"], pd_plate["dx"]
+    assert gaps.min() < 1.01 * dx  # they came back into contact (contact distance dx)
+    assert gaps.min() > 0.8 * dx  # and contact kept them from overlapping
+
+
+def test_pd_plate_writes_damage_for_paraview(pd_plate):
+    from dem.io.hdf5 import read_frame
+
+    xdmf = (pd_plate["out"] / "plate.xdmf").read_text()
+    assert 'Name="damage"' in xdmf
+    last = read_frame(pd_plate["out"] / "plate.h5", -1)
+    damage = last["fields"]["damage"] if "fields" in last else None
+    assert damage is not None and damage.max() > 0.0

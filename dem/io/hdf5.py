@@ -234,6 +234,10 @@ class H5Writer:
         once yourself (``writer(sim)``) for a frame of the initial state.
     contacts : bool
         Also write the touching contacts of every frame.
+    fields : dict, optional
+        Extra per-body scalars, ``{name: fn(sim) -> (n,) array}``, written with every
+        frame and shown by the XDMF file as particle attributes (e.g. peridynamic
+        damage).
 
     Examples
     --------
@@ -249,7 +253,8 @@ class H5Writer:
     2
     """
 
-    def __init__(self, path, every=100, contacts=True):
+    def __init__(self, path, every=100, contacts=True, fields=None):
+        self.fields = dict(fields or {})
         self.path = os.fspath(path)
         self.tmp_path = self.path + ".tmp"
         self.xdmf_path = os.fspath(Path(self.path).with_suffix(".xdmf"))
@@ -291,6 +296,14 @@ class H5Writer:
         g.create_dataset("kind", data=b.kind[par].astype(np.int32))
         for name in ("pos", "vel", "rot", "ang_vel", "radius", "force"):
             g.create_dataset(name, data=getattr(b, name)[par])
+        if self.fields:
+            extra = g.create_group("fields")
+            for name, fn in self.fields.items():
+                value = np.asarray(fn(sim), dtype=np.float64)
+                if value.shape != (b.n,):
+                    raise ValueError(f"field {name!r} must give one number per body, "
+                                     f"got shape {value.shape}")
+                extra.create_dataset(name, data=value[par])
         w = g.create_group("walls")
         w.create_dataset("id", data=wal.astype(np.int32))
         w.create_dataset("pos", data=b.pos[wal])

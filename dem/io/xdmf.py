@@ -7,8 +7,10 @@ The domain holds up to two temporal collections, one grid per frame in each:
     centres (``XYZ`` in 3D, ``XY`` in 2D, where the reader sets z = 0), node
     attributes ``radius`` (scalar; the bounding radius of non-spheres), ``vel`` and
     ``force`` (vectors), and ``kind`` (the :class:`~dem.shapes.Shape` code) when the
-    file holds bodies other than spheres. Draw them as sphere glyphs scaled by
-    ``radius``; custom shapes (a user SDF, no vertices) are seen only this way.
+    file holds bodies other than spheres, and every extra per-body scalar the writer
+    was given (``fields/`` of each frame; peridynamic damage, for one). Draw them as
+    sphere glyphs scaled by ``radius``; custom shapes (a user SDF, no vertices) are seen
+    only this way.
 ``shapes``
     Only when some frame holds boxes, polygons or polyhedra: ``Triangle`` grids of
     their world-frame surfaces (``surface/`` of each frame), cell attributes ``body``
@@ -86,6 +88,10 @@ def _particle_grid(series, g, name, base, ref_file, zeros, with_kind):
                        zeros.shape[0])
         else:
             _data_item(a, f"{base}/{attr}", g[attr].shape)
+    for field in g.get("fields", {}):
+        a = ET.SubElement(grid, "Attribute", {
+            "Name": field, "AttributeType": "Scalar", "Center": "Node"})
+        _data_item(a, f"{base}/fields/{field}", (n,))
     if with_kind and "kind" in g:
         a = ET.SubElement(grid, "Attribute", {
             "Name": "kind", "AttributeType": "Scalar", "Center": "Node"})

@@ -37,6 +37,11 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/shape_throughput.py
 	$(BIN)/python benchmarks/rve_call.py
 	$(BIN)/python benchmarks/mpi_scaling.py
+	$(BIN)/python benchmarks/rve_vs_yade.py
+	$(BIN)/python benchmarks/pd_lammps.py
+	$(BIN)/python benchmarks/pd_kirsch.py
+	$(BIN)/python benchmarks/pd_surface_effect.py
+	$(BIN)/python benchmarks/stability_map.py
 
 clean:
 	rm -rf $(VENV) .numba_cache .pytest_cache output

@@ -37,9 +37,11 @@ def kirsch_shape(r, a):
     return 0.5 * (a**2 / (2 * r**2) + 3 * a**4 / (2 * r**4))
 
 
-def concentration(dx, m, corrected=True, scale=1.0, max_steps=40000, threads=None):
+def concentration(dx, m, corrected=True, scale=1.0, max_steps=40000, threads=None,
+                  settle=1e-4):
     """(nearest, fitted, steps, points) for lattice spacing dx and horizon m dx on a plate
-    of side ``scale`` (hole and plate scaled together)."""
+    of side ``scale`` (hole and plate scaled together), relaxed until the point stress
+    next to the hole changes by less than ``settle`` per 100 steps."""
     W, a, dx = WIDTH * scale, RADIUS * scale, dx * scale
     c = 0.5 * W
     b = dem.Bodies.empty(2)
@@ -62,7 +64,7 @@ def concentration(dx, m, corrected=True, scale=1.0, max_steps=40000, threads=Non
         sim.run(100)
         s = sim.stress()[:, 1, 1] / sim.stress()[far, 1, 1].mean()
         nearest = float(s[row & (r < a + dx)].max())
-        if prev is not None and abs(nearest - prev) < 1e-4:
+        if prev is not None and abs(nearest - prev) < settle:
             break
         prev = nearest
     fit = row & (r > a + sim.horizon) & (r < 2 * a + sim.horizon) & (x > sim.horizon) & (

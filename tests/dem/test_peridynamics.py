@@ -307,8 +307,8 @@ def test_kirsch_concentration_is_bracketed_and_converges():
 
     bench = runpy.run_path(str(Path(__file__).resolve().parents[2] / "benchmarks" /
                                "pd_kirsch.py"), run_name="bench")
-    coarse = bench["concentration"](0.02, 3.0, scale=0.5, threads=1)
-    fine = bench["concentration"](0.0125, 3.0, scale=0.5, threads=1)
+    coarse = bench["concentration"](0.02, 3.0, scale=0.5, threads=1, settle=1e-3)
+    fine = bench["concentration"](0.0125, 3.0, scale=0.5, threads=1, settle=1e-3)
     assert coarse[0] < fine[0] < 3.14 < fine[1] < coarse[1]
     assert fine[1] == pytest.approx(3.14, rel=0.1)
 

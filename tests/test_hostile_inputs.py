@@ -36,7 +36,7 @@ ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 
 #: generated cases per property (docs/hostile_inputs.md states the total)
-N_TOML = 120
+N_TOML = 80
 N_PACKING_TEXT = 60
 N_HDF5 = 100
 N_CHECKPOINT = 25

@@ -144,6 +144,38 @@ def loose_cloud(dim, radii, solid_fraction, seed=0, aspect=None):
 
 
 # --------------------------------------------------------------------------- the RVE
+def check_settings(mass_scale, max_step_strain, tol, stress_tol, max_relax_steps,
+                   check_every):
+    """Refuse RVE settings that are not physical (shared by every boundary type)."""
+    for name, v in (("max_step_strain", max_step_strain), ("tol", tol),
+                    ("stress_tol", stress_tol), ("mass_scale", mass_scale)):
+        if not (math.isfinite(v) and v > 0.0):
+            raise ValueError(f"{name} must be positive and finite, got {v}")
+    if mass_scale < 1.0:
+        raise ValueError(f"mass_scale must be >= 1, got {mass_scale}")
+    if int(max_relax_steps) < 1 or int(check_every) < 1:
+        raise ValueError("max_relax_steps and check_every must be >= 1")
+
+
+def scale_masses(bodies, mass_scale):
+    """Density scaling: masses, inertias and densities times ``mass_scale``."""
+    if mass_scale != 1.0:
+        bodies.mass *= mass_scale
+        bodies.inertia *= mass_scale
+        bodies.density *= mass_scale
+
+
+def store_settings(rve, mass_scale, max_step_strain, tol, stress_tol, max_relax_steps,
+                   check_every):
+    """Set the relaxation settings on ``rve`` (the names of ``RVE._SETTINGS``)."""
+    rve.mass_scale = float(mass_scale)
+    rve.max_step_strain = float(max_step_strain)
+    rve.tol = float(tol)
+    rve.stress_tol = float(stress_tol)
+    rve.max_relax_steps = int(max_relax_steps)
+    rve.check_every = int(check_every)
+
+
 class RVE:
     """A periodic representative volume element of disks or spheres.
 
@@ -188,18 +220,9 @@ class RVE:
             raise ValueError(f"bodies are {bodies.dim}D, the cell {cell.dim}D")
         if bodies.has_shapes or np.any(bodies.kind != 0):
             raise ValueError("an RVE holds disks or spheres only")
-        for name, v in (("max_step_strain", max_step_strain), ("tol", tol),
-                        ("stress_tol", stress_tol), ("mass_scale", mass_scale)):
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"{name} must be positive and finite, got {v}")
-        if mass_scale < 1.0:
-            raise ValueError(f"mass_scale must be >= 1, got {mass_scale}")
-        if int(max_relax_steps) < 1 or int(check_every) < 1:
-            raise ValueError("max_relax_steps and check_every must be >= 1")
-        if mass_scale != 1.0:
-            bodies.mass *= mass_scale
-            bodies.inertia *= mass_scale
-            bodies.density *= mass_scale
+        check_settings(mass_scale, max_step_strain, tol, stress_tol, max_relax_steps,
+                       check_every)
+        scale_masses(bodies, mass_scale)
         sim = Simulation(bodies, law, dt=dt, damping=damping, box=cell, threads=threads)
         self._setup(sim, law, mass_scale, max_step_strain, tol, stress_tol,
                     max_relax_steps, check_every, np.eye(cell.dim))
@@ -210,12 +233,8 @@ class RVE:
         self.law = law
         self.cell = sim.cell
         self.dim = sim.dim
-        self.mass_scale = float(mass_scale)
-        self.max_step_strain = float(max_step_strain)
-        self.tol = float(tol)
-        self.stress_tol = float(stress_tol)
-        self.max_relax_steps = int(max_relax_steps)
-        self.check_every = int(check_every)
+        store_settings(self, mass_scale, max_step_strain, tol, stress_tol,
+                       max_relax_steps, check_every)
         #: accumulated deformation gradient of the cell since its creation
         self.deformation = deformation
         #: steps of the last load or relaxation

@@ -51,7 +51,14 @@ import numpy as np
 from .contact.laws import Law, law_from_spec
 from .contact.model import ContactModel
 from .observers import contact_summary
-from .rve import RelaxationError, particle_radii, solid_volume
+from .rve import (
+    RelaxationError,
+    check_settings,
+    particle_radii,
+    scale_masses,
+    solid_volume,
+    store_settings,
+)
 from .shapes import Shape
 from .simulation import Simulation
 from .state import Bodies
@@ -115,18 +122,9 @@ check_every, threads
             raise ValueError("a box RVE holds disks or spheres only (it adds the walls)")
         if np.any(bodies.pos < lo) or np.any(bodies.pos > hi):
             raise ValueError("every particle centre must lie inside the box")
-        for name, v in (("max_step_strain", max_step_strain), ("tol", tol),
-                        ("stress_tol", stress_tol), ("mass_scale", mass_scale)):
-            if not (math.isfinite(v) and v > 0.0):
-                raise ValueError(f"{name} must be positive and finite, got {v}")
-        if mass_scale < 1.0:
-            raise ValueError(f"mass_scale must be >= 1, got {mass_scale}")
-        if int(max_relax_steps) < 1 or int(check_every) < 1:
-            raise ValueError("max_relax_steps and check_every must be >= 1")
-        if mass_scale != 1.0:
-            bodies.mass *= mass_scale
-            bodies.inertia *= mass_scale
-            bodies.density *= mass_scale
+        check_settings(mass_scale, max_step_strain, tol, stress_tol, max_relax_steps,
+                       check_every)
+        scale_masses(bodies, mass_scale)
         walls = np.zeros((d, 2), np.int64)
         for a in range(d):
             e = np.eye(d)[a]
@@ -146,12 +144,8 @@ check_every, threads
         self.walls = np.asarray(walls, np.int64)
         self.length_ref = np.array(length_ref, np.float64)
         self.particles = np.flatnonzero(sim.bodies.kind != Shape.PLANE)
-        self.mass_scale = float(mass_scale)
-        self.max_step_strain = float(max_step_strain)
-        self.tol = float(tol)
-        self.stress_tol = float(stress_tol)
-        self.max_relax_steps = int(max_relax_steps)
-        self.check_every = int(check_every)
+        store_settings(self, mass_scale, max_step_strain, tol, stress_tol,
+                       max_relax_steps, check_every)
         #: steps of the last load or relaxation
         self.last_relax_steps = 0
 

@@ -19,6 +19,16 @@ from .materials import P_ALPHA, P_C, P_KAPPA, P_MODEL, P_SCRIT, PMB_CODE
 OK, REBUILD, NONFINITE = 0, 1, 2
 
 
+@kernel(inline=True)
+def distance(pos, i, j):
+    """``|x_j - x_i|``."""
+    r2 = 0.0
+    for k in range(pos.shape[1]):
+        y = pos[j, k] - pos[i, k]
+        r2 += y * y
+    return math.sqrt(r2)
+
+
 @kernel
 def weighted_volume(start, nbr, length, omega, vol, m_out):
     """``m_i = sum_j w |xi|^2 V_j`` over every bond (broken or not)."""
@@ -48,11 +58,7 @@ def bond_pass(pos, start, nbr, length, omega, vol, qw, pw, params, broken, theta
             if broken[b]:
                 continue
             j = nbr[b]
-            r2 = 0.0
-            for k in range(d):
-                y = pos[j, k] - pos[i, k]
-                r2 += y * y
-            e = math.sqrt(r2) - length[b]
+            e = distance(pos, i, j) - length[b]
             if e > s_crit * length[b]:
                 broken[b] = 1
                 continue
@@ -67,11 +73,7 @@ def bond_pass(pos, start, nbr, length, omega, vol, qw, pw, params, broken, theta
             if broken[b]:
                 continue
             j = nbr[b]
-            r2 = 0.0
-            for k in range(d):
-                y = pos[j, k] - pos[i, k]
-                r2 += y * y
-            e = math.sqrt(r2) - length[b]
+            e = distance(pos, i, j) - length[b]
             sd += omega[b] * (e - theta_out[i] * length[b] / d) * length[b] * vol[j]
         sdev_out[i] = sd
 
@@ -95,11 +97,7 @@ def force_pass(pos, start, nbr, twin, length, omega, vol, qw, pw, corr, theta, s
             if broken[b]:
                 continue
             j = nbr[b]
-            r2 = 0.0
-            for k in range(d):
-                y = pos[j, k] - pos[i, k]
-                r2 += y * y
-            r = math.sqrt(r2)
+            r = distance(pos, i, j)
             L = length[b]
             e = r - L
             if lps:
@@ -127,12 +125,8 @@ def energy_density(pos, start, nbr, length, omega, vol, pw, corr, theta, params,
             if broken[b]:
                 continue
             j = nbr[b]
-            r2 = 0.0
-            for k in range(d):
-                y = pos[j, k] - pos[i, k]
-                r2 += y * y
             L = length[b]
-            e = math.sqrt(r2) - L
+            e = distance(pos, i, j) - L
             if lps:
                 ed = e - theta[i] * L / d
                 w_i += 0.5 * alpha * pw[b] * omega[b] * ed * ed * vol[j]

@@ -17,6 +17,7 @@ from ..simulation import PARALLEL_MIN_BODIES, SimulationError, progress_bar
 from .kernels import (
     NONFINITE,
     REBUILD,
+    bond_pass,
     energy_density,
     forces,
     step_chunk,
@@ -334,7 +335,7 @@ class PDSimulation:
     def energy_density(self):
         """Strain-energy density [J/m^3] of every point at the current state."""
         b, f = self.bodies, self.family
-        theta = self._dilation()
+        theta = self.dilation()
         out = np.zeros(b.n)
         energy_density(b.pos, f.start, f.nbr, f.length, self.omega, self.vol, self.pw,
                        self.corr, theta, self.params, f.broken, out)
@@ -342,11 +343,6 @@ class PDSimulation:
 
     def dilation(self):
         """Dilation ``theta`` of every point at the current state (LPS; 0 for PMB)."""
-        return self._dilation()
-
-    def _dilation(self):
-        from .kernels import bond_pass
-
         b, f = self.bodies, self.family
         theta = np.zeros(b.n)
         params = self.params.copy()

@@ -1,5 +1,8 @@
 """Peridynamics: energy and forces against elasticity, conservation, stability, fracture."""
 
+import runpy
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -8,6 +11,12 @@ from dem import peridynamics as pd
 from dem.simulation import SimulationError
 
 E, RHO, DX = 1e9, 1000.0, 0.01
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
+
+
+def benchmark(name):
+    """The functions of benchmarks/<name>.py (its main block not run)."""
+    return runpy.run_path(str(BENCHMARKS / f"{name}.py"), run_name="bench")
 
 
 def plate(lo, hi, material, horizon=3.0, cut=None, dx=DX, **kw):
@@ -175,25 +184,17 @@ def test_damage_is_irreversible():
     assert sim.damage().max() <= 1.0 and sim.damage().max() > 0.0
 
 
-@pytest.mark.parametrize("corrected,tol", [(True, 0.02), (False, 0.06)])
-def test_bar_under_static_tension_stretches_as_elasticity_says(corrected, tol):
-    """Free bar 0.5 x 0.3 m pulled at both ends (stress 0.1 MPa, delta = 3 dx): the
-    elongation of its middle half equals sigma L / E; the surface correction is what
-    brings it within 2%."""
-    mat = pd.LPS(E=E, nu=0.3, density=RHO, plane="stress", surface_correction=corrected)
-    L, W, sig = 0.5, 0.3, 1e5
-    sim = plate([0, 0], [L, W], mat, damping=0.7)
-    x = sim.x0[:, 0]
-    sim.add_body_force(np.flatnonzero(x > L - DX), [sig / DX, 0.0])
-    sim.add_body_force(np.flatnonzero(x < DX), [-sig / DX, 0.0])
-    sim.run(1500)
-    cols = np.unique(x)
-    x1, x2 = cols[len(cols) // 4], cols[3 * len(cols) // 4]
-    u = sim.bodies.pos[:, 0] - x
-    stretch = u[x == x2].mean() - u[x == x1].mean()
-    assert stretch == pytest.approx(sig * (x2 - x1) / E, rel=tol)
-    if not corrected:
-        assert abs(stretch / (sig * (x2 - x1) / E) - 1.0) > 0.02
+@pytest.mark.parametrize("corrected", [True, False])
+def test_bar_under_static_tension_stretches_as_elasticity_says(corrected):
+    """Free bar 0.5 x 0.3 m pulled at both ends (benchmarks/pd_surface_effect.py: stress
+    0.1 MPa, delta = 3 dx): the elongation of its middle half equals sigma L / E within
+    2% with the surface correction, and misses by more than 2% without it."""
+    ratio = benchmark("pd_surface_effect")["middle_stretch_ratio"](0.3, corrected,
+                                                                   threads=1)
+    if corrected:
+        assert ratio == pytest.approx(1.0, rel=0.02)
+    else:
+        assert 0.02 < abs(ratio - 1.0) < 0.06
 
 
 def test_dem_sphere_bounces_off_a_plate_conserving_momentum():
@@ -240,9 +241,7 @@ def test_bad_input_is_refused():
 
 def test_docs_first_plate_runs_and_cracks():
     """The example of docs/peridynamics.md runs as written and its notch grows."""
-    from pathlib import Path
-
-    page = (Path(__file__).resolve().parents[2] / "docs" / "peridynamics.md").read_text()
+    page = (BENCHMARKS.parent / "docs" / "peridynamics.md").read_text()
     code = page.split("```python\n", 1)[1].split("```", 1)[0]
     scope = {"print": lambda *a: None}
     exec(compile(code, "docs/peridynamics.md", "exec"), scope)  # noqa: S102 (our own docs)
@@ -302,11 +301,7 @@ def test_kirsch_concentration_is_bracketed_and_converges():
     hole is below the elastic concentration (3.14 for this width) and rises as dx and
     delta shrink; the Kirsch-profile fit outside the horizon is above it, falls, and is
     within 10% at a / dx = 8."""
-    import runpy
-    from pathlib import Path
-
-    bench = runpy.run_path(str(Path(__file__).resolve().parents[2] / "benchmarks" /
-                               "pd_kirsch.py"), run_name="bench")
+    bench = benchmark("pd_kirsch")
     coarse = bench["concentration"](0.02, 3.0, scale=0.5, threads=1, settle=1e-3)
     fine = bench["concentration"](0.0125, 3.0, scale=0.5, threads=1, settle=1e-3)
     assert coarse[0] < fine[0] < 3.14 < fine[1] < coarse[1]

@@ -318,13 +318,17 @@ class MPIFarm:
             return None
         return {g: st for part in parts for g, st in part.items()}
 
+    def balance_cost(self):
+        """Cost of each point that the rebalancing evens out: its last trial's
+        measured time (an elastic point still costs a little)."""
+        return np.maximum(self.cost, 1e-6)
+
     def _rebalance(self):
         """New contiguous blocks of equal measured cost; points move with their
         committed state."""
         new = None
         if self.rank == 0:
-            cost = np.maximum(self.cost, 1e-6)  # an elastic point still costs a little
-            cum = np.concatenate([[0.0], np.cumsum(cost)])
+            cum = np.concatenate([[0.0], np.cumsum(self.balance_cost())])
             per_rank = np.diff(cum[self.bounds])
             if self.n >= self.size and per_rank.max() > self.IMBALANCE * per_rank.mean():
                 cuts = np.searchsorted(cum, cum[-1] * np.arange(1, self.size) / self.size)

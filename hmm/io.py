@@ -31,8 +31,9 @@ from dem.io.hdf5 import save_figure
 
 log = logging.getLogger(__name__)
 
-_TOPOLOGY = {"quad1": "Quadrilateral", "quad2": "Quadrilateral", "tri1": "Triangle",
-             "tri2": "Triangle", "hex1": "Hexahedron", "tet1": "Tetrahedron"}
+_TOPOLOGY = {"quad1": "Quadrilateral", "quad2": "Quadrilateral", "quad8": "Quadrilateral",
+             "tri1": "Triangle", "tri2": "Triangle", "hex1": "Hexahedron",
+             "tet1": "Tetrahedron"}
 #: skfem's hexahedron vertex order -> VTK/XDMF order
 _HEX_ORDER = [0, 3, 6, 2, 1, 5, 7, 4]
 _AXES = "xyz"

@@ -20,6 +20,7 @@ from skfem import (
     ElementHex1,
     ElementQuad1,
     ElementQuad2,
+    ElementQuadS2,
     ElementTetP1,
     ElementTriP1,
     ElementTriP2,
@@ -35,11 +36,13 @@ from skfem import (
 from skfem.helpers import ddot, dot, sym_grad
 
 #: element name -> (mesh class, element class, quadrature order): 2x2 Gauss points
-#: on bilinear quadrilaterals, 3x3 on biquadratic ones, 1 / 3 on linear / quadratic
-#: triangles, 2x2x2 on trilinear hexahedra, 1 on linear tetrahedra
+#: on bilinear quadrilaterals, 3x3 on biquadratic (9-node) ones, 2x2 on 8-node
+#: serendipity ones (reduced integration, as YADE's FEMxDEM), 1 / 3 on linear /
+#: quadratic triangles, 2x2x2 on trilinear hexahedra, 1 on linear tetrahedra
 ELEMENTS = {
     "quad1": (MeshQuad, ElementQuad1, 3),
     "quad2": (MeshQuad, ElementQuad2, 5),
+    "quad8": (MeshQuad, ElementQuadS2, 3),
     "tri1": (MeshTri, ElementTriP1, 1),
     "tri2": (MeshTri, ElementTriP2, 2),
     "hex1": (MeshHex, ElementHex1, 3),

@@ -4,10 +4,16 @@ Layout (SI units; ``d`` is ``[mesh] dim``)::
 
     [mesh]
     dim = 2                        # 2 (plane strain) or 3
-    element = "quad1"              # quad1 quad2 tri1 tri2 (2D), hex1 tet1 (3D)
+    element = "quad1"              # quad1 quad2 quad8 tri1 tri2 (2D), hex1 tet1 (3D)
     size = [0.05, 0.1]             # [m] rectangle / box [0, size]
     cells = [2, 4]                 # elements per axis
     file = "mesh.msh"              # instead of size/cells: any mesh scikit-fem reads
+
+    [[boundary]]                   # a named part of a boundary (optional, any number)
+    name = "footing"
+    of = "top"                     # the facets of "top" with midpoints in [lo, hi]
+    lo = [0.0, 0.1]                # [m]
+    hi = [0.02, 0.1]
 
     [[dirichlet]]                  # prescribed displacement, ramped over the schedule
     boundary = "bottom"            # a named boundary of the mesh
@@ -33,6 +39,11 @@ Layout (SI units; ``d`` is ``[mesh] dim``)::
     [micro]
     model = "dem"                  # dem | adaptive | linear_elastic | hyperbolic
     ... (see MICRO keys below)
+
+    [[imperfection]]               # a weak spot (optional, any number; dem/adaptive)
+    center = [0.01, 0.03]          # [m] Gauss points within radius of it start
+    radius = 0.004                 # from their own packing: consolidated at this
+    consolidation_friction = 0.3   # friction (looser), and/or with contact friction mu
 
     [solver]
     tol_residual = 1e-3
@@ -67,12 +78,22 @@ SCHEMA = {
     "mesh": Section(doc="The macro domain and its finite elements.", required=True, keys={
         "dim": Key("int", default=2, choices=(2, 3), doc="2 (plane strain) or 3."),
         "element": Key("str", default="quad1",
-                       choices=("quad1", "quad2", "tri1", "tri2", "hex1", "tet1"),
-                       doc="Element type (2D: quad1 quad2 tri1 tri2; 3D: hex1 tet1)."),
+                       choices=("quad1", "quad2", "quad8", "tri1", "tri2", "hex1",
+                                "tet1"),
+                       doc="Element type (2D: quad1 quad2 quad8 tri1 tri2; 3D: hex1 "
+                           "tet1)."),
         "size": Key("vector", "m", range=POSITIVE,
                     doc="Edge lengths of the rectangle/box [0, size]."),
         "cells": Key("vector", range=Range(1.0), doc="Elements along each axis."),
         "file": Key("path", doc="A mesh file scikit-fem reads (instead of size/cells)."),
+    }),
+    "boundary": Section(doc="Named parts of the mesh's boundaries (a footing on the top "
+                            "face, say): the facets of `of` whose midpoints lie in the "
+                            "box [lo, hi].", array=True, keys={
+        "name": Key("str", default=REQUIRED, doc="Name of the new boundary."),
+        "of": Key("str", default=REQUIRED, doc="The boundary it is cut from."),
+        "lo": Key("vector", "m", default=REQUIRED, doc="Lower corner of the box."),
+        "hi": Key("vector", "m", default=REQUIRED, doc="Upper corner of the box."),
     }),
     "dirichlet": Section(doc="Prescribed displacements, ramped with the load factor.",
                          array=True, keys={
@@ -151,6 +172,19 @@ SCHEMA = {
         "ratio_threshold": Key("float", default=0.3, range=POSITIVE, only=("adaptive",),
                                doc="Stress ratio q/p after which a point runs its RVE."),
     }),
+    "imperfection": Section(doc="Weak spots: the Gauss points inside a disc (a ball in "
+                                "3D) start from their own packing, so that localisation "
+                                "has a place to begin.", array=True, keys={
+        "center": Key("vector", "m", default=REQUIRED, doc="Centre of the spot."),
+        "radius": Key("float", "m", default=REQUIRED, range=POSITIVE,
+                      doc="Radius of the spot."),
+        "consolidation_friction": Key("float", range=NONNEGATIVE,
+                                      doc="Friction while consolidating the spot's "
+                                          "packing (higher: looser); default as [micro]."),
+        "mu": Key("float", range=NONNEGATIVE,
+                  doc="Contact friction in the spot; default as [micro]."),
+        "packing": Key("path", doc="A packing file for the spot (else generated)."),
+    }),
     "solver": Section(doc="Newton iterations and step cutting.", keys={
         "tol_residual": Key("float", default=1e-3, range=POSITIVE,
                             doc="Free residual over internal force norm."),
@@ -211,7 +245,7 @@ def validate_problem(data, source="<problem>", base_dir="."):
                      f"a structured mesh may have", "[mesh]")
     elif m["size"] is not None or m["cells"] is not None:
         ctx.fail("takes a mesh file or size and cells, not both", "[mesh]")
-    two_d = m["element"] in ("quad1", "quad2", "tri1", "tri2")
+    two_d = m["element"] in ("quad1", "quad2", "quad8", "tri1", "tri2")
     if two_d != (m["dim"] == 2):
         ctx.fail(f"element \"{m['element']}\" does not fit dim = {m['dim']}", "[mesh]")
     for i, c in enumerate(out["dirichlet"]):
@@ -220,6 +254,9 @@ def validate_problem(data, source="<problem>", base_dir="."):
                      f"[[dirichlet]] #{i + 1}")
     if not out["dirichlet"]:
         ctx.fail("a quasi-static problem needs supports: add [[dirichlet]] conditions")
+    if out["imperfection"] and out["micro"]["model"] not in ("dem", "adaptive"):
+        ctx.fail(f"needs [micro] model = \"dem\" or \"adaptive\", not "
+                 f"\"{out['micro']['model']}\"", "[[imperfection]] #1")
     return out
 
 
@@ -245,6 +282,7 @@ def build_macro(problem):
                              f"{ELEMENTS[m['element']][0].__name__}")
     if mesh.t.shape[1] == 0:
         raise SceneError(f"{src}: [mesh] has no elements")
+    mesh = _cut_boundaries(problem, mesh)
     known = set(mesh.boundaries or {})
     for kind in ("dirichlet", "pressure", "traction"):
         for i, c in enumerate(problem[kind]):
@@ -253,6 +291,30 @@ def build_macro(problem):
                                  f"\"{c['boundary']}\" is not a boundary of the mesh "
                                  f"(known: {', '.join(sorted(known)) or 'none'})")
     return Macro(mesh, m["element"])
+
+
+def _cut_boundaries(problem, mesh):
+    """The mesh with the ``[[boundary]]`` parts added to its named boundaries."""
+    src = problem["source"]
+    scale = float(np.ptp(mesh.p, axis=1).max())
+    for i, b in enumerate(problem["boundary"]):
+        where = f"[[boundary]] #{i + 1}"
+        known = mesh.boundaries or {}
+        if b["of"] not in known:
+            raise SceneError(f"{src}: {where} of = \"{b['of']}\" is not a boundary of "
+                             f"the mesh (known: {', '.join(sorted(known)) or 'none'})")
+        if b["name"] in known:
+            raise SceneError(f"{src}: {where} name = \"{b['name']}\" is taken")
+        facets = np.asarray(known[b["of"]])
+        mid = mesh.p[:, mesh.facets[:, facets]].mean(axis=1).T
+        tol = 1e-9 * scale
+        inside = np.all((mid >= np.asarray(b["lo"]) - tol)
+                        & (mid <= np.asarray(b["hi"]) + tol), axis=1)
+        if not inside.any():
+            raise SceneError(f"{src}: {where} \"{b['name']}\": no facet of "
+                             f"\"{b['of']}\" has its midpoint in [lo, hi]")
+        mesh = mesh.with_boundaries({b["name"]: facets[inside]})
+    return mesh
 
 
 def build_loads(problem, macro):
@@ -295,22 +357,45 @@ def build_farm(problem, macro, progress=None):
     """
     from .farm import MPIFarm, SerialFarm, mpi_world
 
-    factory = model_factory(problem, macro.dim, progress)
+    factory = model_factory(problem, macro.dim, progress, macro.gauss_points())
     _, comm = mpi_world()
     if comm is not None:
         return MPIFarm(comm, macro.n_gp, macro.dim, factory)
     return SerialFarm([factory(g) for g in range(macro.n_gp)])
 
 
-def build_models(problem, n, dim, progress=None):
-    """The ``n`` micro models of a validated problem."""
-    factory = model_factory(problem, dim, progress)
+def build_models(problem, n, dim, progress=None, points=None):
+    """The ``n`` micro models of a validated problem (``points``: the Gauss points'
+    coordinates (n, d), needed with ``[[imperfection]]``)."""
+    factory = model_factory(problem, dim, progress, points)
     return [factory(g) for g in range(n)]
 
 
-def model_factory(problem, dim, progress=None):
+def spot_of(problem, points):
+    """For every Gauss point, the index of the first ``[[imperfection]]`` that holds
+    it, or -1.
+
+    Examples
+    --------
+    >>> p = {"imperfection": [{"center": [0.0, 0.0], "radius": 1.0}]}
+    >>> spot_of(p, np.array([[0.5, 0.5], [1.0, 1.0]])).tolist()
+    [0, -1]
+    """
+    points = np.asarray(points, dtype=np.float64)
+    spot = np.full(len(points), -1, dtype=np.int64)
+    for i, imp in reversed(list(enumerate(problem["imperfection"]))):
+        inside = np.linalg.norm(points - np.asarray(imp["center"]), axis=1) <= imp["radius"]
+        spot[inside] = i
+    return spot
+
+
+def model_factory(problem, dim, progress=None, points=None):
     """``factory(g)``: a fresh micro model for Gauss point ``g`` in its initial state.
-    DEM packings are made once, here, and copied by every call."""
+
+    DEM packings are made once, here, and copied by every call; the packing of an
+    ``[[imperfection]]`` is made on first use, so a rank that owns none of its points
+    never builds it. ``points`` are the Gauss points' coordinates (n_gp, d).
+    """
     from .micro import Adaptive, DEMMicroModel, Hyperbolic, LinearElastic
 
     mc = problem["micro"]
@@ -321,9 +406,21 @@ def model_factory(problem, dim, progress=None):
         return lambda g: Hyperbolic(mc["young"], mc["poisson"], mc["gamma_ref"], dim,
                                     mc["stress0"])
     packings = [_packing(problem, k, dim, progress) for k in range(mc["packings"])]
+    if problem["imperfection"] and points is None:
+        raise ValueError("[[imperfection]] needs the Gauss points' coordinates")
+    spot = None if points is None else spot_of(problem, points)
+    weak = {}
+
+    def packing_of(g):
+        if spot is None or spot[g] < 0:
+            return packings[g % len(packings)]
+        i = int(spot[g])
+        if i not in weak:
+            weak[i] = _packing(problem, 0, dim, progress, problem["imperfection"][i])
+        return weak[i]
 
     def factory(g):
-        m = DEMMicroModel(clone_rve(packings[g % len(packings)]), tangent=mc["tangent"])
+        m = DEMMicroModel(clone_rve(packing_of(g)), tangent=mc["tangent"])
         if kind == "adaptive":
             m = Adaptive(m, mc["strain_threshold"], mc["ratio_threshold"])
         return m
@@ -331,12 +428,19 @@ def model_factory(problem, dim, progress=None):
     return factory
 
 
-def _packing(problem, k, dim, progress):
+def _packing(problem, k, dim, progress, spot=None):
+    """Packing ``k`` of ``[micro]``, or the packing of an ``[[imperfection]]``
+    (``spot``): the first packing with the spot's friction and consolidation."""
     from dem import LinearSpring
     from dem import rve as rvemod
 
-    mc = problem["micro"]
+    mc = dict(problem["micro"])
     src = problem["source"]
+    where = "[micro]"
+    if spot is not None:
+        where = "[[imperfection]]"
+        mc.update({key: spot[key] for key in ("consolidation_friction", "mu", "packing")
+                   if spot[key] is not None})
     opts = {"damping": mc["damping"], "tol": mc["tol"],
             "max_step_strain": mc["max_step_strain"],
             "max_relax_steps": mc["max_relax_steps"]}
@@ -345,9 +449,11 @@ def _packing(problem, k, dim, progress):
             rve = rvemod.RVE.load_file(mc["packing"], **{k_: v for k_, v in opts.items()
                                                          if k_ != "damping"})
         except (OSError, ValueError) as err:
-            raise SceneError(f"{src}: [micro] packing: {err}") from None
+            raise SceneError(f"{src}: {where} packing: {err}") from None
         if rve.dim != dim:
-            raise SceneError(f"{src}: [micro] packing is {rve.dim}D, the mesh {dim}D")
+            raise SceneError(f"{src}: {where} packing is {rve.dim}D, the mesh {dim}D")
+        if spot is not None and spot["mu"] is not None:
+            rve.set_friction(spot["mu"])
         return rve
     law = LinearSpring(kn=mc["kn"], kt=mc["kt"], mu=mc["mu"])
     return rvemod.generate(dim, mc["count"], mc["radius"], law, mc["p0"],

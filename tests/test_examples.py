@@ -165,3 +165,60 @@ def test_pd_plate_writes_damage_for_paraview(pd_plate):
     last = read_frame(pd_plate["out"] / "plate.h5", -1)
     damage = last["fields"]["damage"] if "fields" in last else None
     assert damage is not None and damage.max() > 0.0
+
+
+# ------------------------------------------------------------------ multiscale problems
+def _problem(name):
+    from hmm.problem import load_problem
+
+    return load_problem(EXAMPLES / f"{name}.toml")
+
+
+def test_shear_band_problem_puts_its_weak_spot_on_the_left_side():
+    """The full file builds: 128 Gauss points, the anchor is one facet of the base,
+    the weak spot holds Gauss points of the left column only, with half the friction.
+    (Its full run is in docs/multiscale.md; the DEM run at small size is the biaxial
+    test of tests/hmm/test_run.py.)"""
+    from hmm.problem import build_loads, build_macro, spot_of
+
+    prob = _problem("shear_band")
+    macro = build_macro(prob)
+    assert macro.n_gp == 128
+    assert len(macro.mesh.boundaries["anchor"]) == 1
+    _, f_const, _ = build_loads(prob, macro)
+    assert abs(f_const.sum()) < 1e-9 * np.abs(f_const).max()  # the two sides balance
+    spot = spot_of(prob, macro.gauss_points())
+    pts = macro.gauss_points()[spot == 0]
+    assert 0 < len(pts) <= 8 and np.all(pts[:, 0] < 0.0125)
+    assert prob["imperfection"][0]["mu"] == 0.5 * prob["micro"]["mu"]
+
+
+def test_strip_footing_small_load_settlement(tmp_path):
+    """The footing file at small size (4 x 4 cells, 20-disk RVEs, 0.3 mm in two
+    steps): at the start the footing and the surcharge carry the RVEs' 100 kPa
+    exactly, then the footing's load grows with its settlement, and the RVEs that
+    ran include every point under the footing."""
+    from hmm.run import run_problem
+
+    prob = _problem("strip_footing")
+    prob["mesh"]["cells"] = [4, 4]
+    prob["micro"]["count"] = 20
+    prob["load"]["steps"] = 2
+    prob["dirichlet"][4]["value"] = -0.0003
+    s = run_problem(prob, tmp_path / "out", progress=False)
+    assert s["load_factor"] == pytest.approx(1.0)
+    import h5py
+
+    with h5py.File(tmp_path / "out" / "fields.h5") as f:
+        force = f["curve/force/footing"][:, 1]
+        settle = -f["curve/displacement/footing"][:, 1]
+        ran = f["steps/00002/dem_fraction"][()]
+    from hmm.problem import build_macro
+
+    mesh = build_macro(prob).mesh
+    ends = mesh.p[:, mesh.facets[:, mesh.boundaries["footing"]]]
+    width = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=0).sum()  # 0.025 m: one facet
+    assert force[0] == pytest.approx(-1e5 * width, rel=1e-2)
+    assert np.all(np.diff(settle) > 0) and np.all(np.diff(-force) > 0)
+    under = mesh.f2t[0, mesh.boundaries["footing"]]
+    assert np.all(ran[under] == 1.0)  # the elements under the footing ran their RVEs

@@ -30,12 +30,13 @@ def _rollers(macro, shorten):
     return Supports(dofs, np.concatenate(vals)[first], ("top",))
 
 
-@pytest.mark.parametrize("element", ["quad1", "quad2", "tri1", "tri2", "hex1", "tet1"])
+@pytest.mark.parametrize("element",
+                         ["quad1", "quad2", "quad8", "tri1", "tri2", "hex1", "tet1"])
 def test_uniaxial_compression_is_exact_on_every_element(element):
     """Rollers on the low faces, the top pushed down: a uniform strain field that every
     element represents exactly; the stress and the reaction are analytic (plane strain
     in 2D: sigma_yy = E eps / (1 - nu^2); 3D with free sides: sigma_yy = E eps)."""
-    d = 2 if element in ("quad1", "quad2", "tri1", "tri2") else 3
+    d = 2 if element in ("quad1", "quad2", "quad8", "tri1", "tri2") else 3
     size = [1.0, 2.0, 1.5][:d]
     macro = Macro(structured_mesh(element, size, [2, 3, 2][:d]), element)
     farm = SerialFarm([LinearElastic(E, NU, d) for _ in range(macro.n_gp)])
@@ -47,6 +48,21 @@ def test_uniaxial_compression_is_exact_on_every_element(element):
     assert np.allclose(solver.sigma[:, 1, 1], want, rtol=1e-10)
     area = np.prod(size) / size[1]
     assert solver.reactions()["top"][1] == pytest.approx(want * area, rel=1e-10)
+
+
+def test_quad8_is_the_serendipity_element_with_2x2_gauss_points():
+    """8 nodes (16 dofs) and 4 Gauss points per element, the element of YADE's FEMxDEM;
+    it still represents a quadratic displacement exactly (its strain is linear)."""
+    macro = Macro(structured_mesh("quad8", [1.0, 2.0], [2, 4]), "quad8")
+    assert (macro.n_elems, macro.n_qp, macro.n_gp) == (8, 4, 32)
+    assert macro.basis.element_dofs.shape[0] == 16
+    x, y = macro.basis.doflocs
+    u = np.where(np.arange(macro.n_dofs) % 2 == 0, x * y, y**2)  # (xy, y^2)
+    gp = macro.gauss_points()
+    eps = macro.strain(u)
+    assert np.allclose(eps[:, 0, 0], gp[:, 1])
+    assert np.allclose(eps[:, 1, 1], 2.0 * gp[:, 1])
+    assert np.allclose(eps[:, 0, 1], 0.5 * gp[:, 0])
 
 
 def test_newton_converges_quadratically_with_a_consistent_tangent():

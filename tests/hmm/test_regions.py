@@ -1,0 +1,97 @@
+"""Named parts of boundaries (``[[boundary]]``) and weak spots (``[[imperfection]]``)
+in problem files."""
+
+import copy
+
+import numpy as np
+import pytest
+
+from dem.io.scene import SceneError
+from hmm.problem import build_macro, model_factory, spot_of, validate_problem
+from hmm.run import run_problem
+
+ELASTIC = {
+    "mesh": {"size": [1.0, 1.0], "cells": [4, 2]},
+    "dirichlet": [{"boundary": "bottom", "component": "y"},
+                  {"boundary": "left", "component": "x"},
+                  {"boundary": "top", "component": "y", "value": -0.01}],
+    "micro": {"model": "linear_elastic", "young": 1e6, "poisson": 0.3},
+    "load": {"steps": 1},
+}
+
+
+def _split_top(prob):
+    """The same problem with the top platen given as two cut boundaries."""
+    prob = copy.deepcopy(prob)
+    prob["boundary"] = [{"name": "a", "of": "top", "lo": [0.0, 1.0], "hi": [0.25, 1.0]},
+                        {"name": "b", "of": "top", "lo": [0.25, 1.0], "hi": [1.0, 1.0]}]
+    prob["dirichlet"][2:] = [{"boundary": n, "component": "y", "value": -0.01}
+                             for n in ("a", "b")]
+    return prob
+
+
+def test_cut_boundaries_partition_their_parent_and_load_it_the_same(tmp_path):
+    whole = validate_problem(ELASTIC)
+    split = validate_problem(_split_top(ELASTIC))
+    b = build_macro(split).mesh.boundaries
+    assert len(b["a"]) == 1 and len(b["b"]) == 3
+    assert sorted(np.concatenate([b["a"], b["b"]])) == sorted(b["top"])
+    u1 = run_problem(whole, tmp_path / "whole", progress=False)
+    u2 = run_problem(split, tmp_path / "split", progress=False)
+    np.testing.assert_allclose(u2["u"], u1["u"], rtol=0, atol=1e-15)
+    # the platen pulls the body down on both parts (they share one node)
+    assert u2["reactions"]["a"][1] < 0.0 and u2["reactions"]["b"][1] < 0.0
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda b: b.update(of="roof"), 'of = "roof" is not a boundary of the mesh'),
+    (lambda b: b.update(name="left"), 'name = "left" is taken'),
+    (lambda b: b.update(lo=[2.0, 1.0], hi=[3.0, 1.0]), 'no facet of "top"'),
+])
+def test_bad_cut_boundaries_name_the_key(edit, message):
+    prob = _split_top(ELASTIC)
+    edit(prob["boundary"][0])
+    with pytest.raises(SceneError, match=message) as err:
+        build_macro(validate_problem(prob))
+    assert "[[boundary]] #1" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_imperfection_needs_dem_points():
+    prob = copy.deepcopy(ELASTIC)
+    prob["imperfection"] = [{"center": [0.5, 0.5], "radius": 0.1}]
+    with pytest.raises(SceneError, match=r'\[\[imperfection\]\] #1 needs \[micro\]'):
+        validate_problem(prob)
+
+
+def test_spot_points_take_the_first_spot_that_holds_them():
+    prob = {"imperfection": [{"center": [0.0, 0.0], "radius": 1.0},
+                             {"center": [1.0, 0.0], "radius": 1.0}]}
+    pts = np.array([[0.5, 0.0], [1.5, 0.0], [3.0, 0.0], [-1.0, 0.0]])
+    assert spot_of(prob, pts).tolist() == [0, 1, -1, 0]
+
+
+def test_weak_spot_points_start_from_their_own_packing():
+    """Gauss points in the spot get its friction and its looser consolidation; the
+    others share the ordinary packing."""
+    prob = copy.deepcopy(ELASTIC)
+    prob["mesh"]["cells"] = [2, 1]
+    prob["micro"] = {"model": "dem", "count": 16, "p0": 1e5, "seed": 3,
+                     "consolidation_friction": 0.0, "mu": 0.5}
+    prob["imperfection"] = [{"center": [0.0, 0.0], "radius": 0.3, "mu": 0.25,
+                             "consolidation_friction": 0.5}]
+    prob = validate_problem(prob)
+    macro = build_macro(prob)
+    pts = macro.gauss_points()
+    spot = spot_of(prob, pts)
+    assert spot.tolist().count(0) == 1  # the Gauss point next to the corner
+    make = model_factory(prob, 2, points=pts)
+    models = [make(g) for g in range(macro.n_gp)]
+    mu = [m.rve.law.mu for m in models]
+    voids = [m.measures()["void_ratio"] for m in models]
+    for g in range(macro.n_gp):
+        assert mu[g] == (0.25 if spot[g] == 0 else 0.5)
+        assert voids[g] == voids[int(np.argmax(spot < 0))] or spot[g] == 0
+    weak = int(np.argmax(spot == 0))
+    assert voids[weak] > max(v for g, v in enumerate(voids) if g != weak)
+    with pytest.raises(ValueError, match="coordinates"):
+        model_factory(prob, 2)

@@ -7,7 +7,7 @@ export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
 export NUMBA_THREADING_LAYER ?= omp
 export MPLBACKEND ?= Agg
 
-.PHONY: demo test test-mpi bench venv clean
+.PHONY: demo test test-shapes test-rest test-mpi bench venv clean
 
 venv: $(STAMP)
 
@@ -20,10 +20,24 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/hmm demo --overwrite
 
+# The suite runs as two pytest processes side by side, split where the compiled loops
+# differ (level-set shapes and their contact solvers / everything else), so that numba
+# compiles the two halves at once; then the MPI tests.
+SHAPE_TESTS := $(sort $(wildcard tests/dem/test_detection_*.py tests/dem/test_shape*.py \
+	tests/dem/test_io_shapes.py tests/dem/test_interpreted.py))
+PYTEST := $(BIN)/python -m pytest -q -p no:cacheprovider
+
 test: $(STAMP)
-	$(BIN)/python -m pytest -q tests --ignore=tests/mpi
-	$(BIN)/python -m pytest -q --doctest-modules dem hmm
+	$(MAKE) -j2 --output-sync=target test-shapes test-rest
 	$(MAKE) test-mpi
+
+test-shapes: $(STAMP)
+	$(PYTEST) --basetemp="$$(mktemp -d)/t" $(SHAPE_TESTS)
+	$(PYTEST) --doctest-modules dem hmm
+
+test-rest: $(STAMP)
+	$(PYTEST) --basetemp="$$(mktemp -d)/t" tests --ignore=tests/mpi \
+		$(addprefix --ignore=,$(SHAPE_TESTS))
 
 test-mpi: $(STAMP)
 	NUMBA_NUM_THREADS=1 $(BIN)/mpiexec -n 2 $(BIN)/python -m mpi4py -m pytest -q -p no:cacheprovider tests/mpi

@@ -26,14 +26,15 @@ from pathlib import Path
 
 import h5py
 import numpy as np
+from skfem import MeshHex, MeshQuad, MeshTet, MeshTri
 
 from dem.io.hdf5 import save_figure
 
 log = logging.getLogger(__name__)
 
-_TOPOLOGY = {"quad1": "Quadrilateral", "quad2": "Quadrilateral", "quad8": "Quadrilateral",
-             "tri1": "Triangle", "tri2": "Triangle", "hex1": "Hexahedron",
-             "tet1": "Tetrahedron"}
+#: XDMF topology of each mesh kind (its corner vertices, whatever the element order)
+_TOPOLOGY = ((MeshQuad, "Quadrilateral"), (MeshTri, "Triangle"), (MeshHex, "Hexahedron"),
+             (MeshTet, "Tetrahedron"))
 #: skfem's hexahedron vertex order -> VTK/XDMF order
 _HEX_ORDER = [0, 3, 6, 2, 1, 5, 7, 4]
 _AXES = "xyz"
@@ -260,11 +261,12 @@ class Output:
                 "Precision": str(prec), "Format": "HDF"})
             it.text = f"{h5}:/{ref}"
 
+        topology = next(kind for cls, kind in _TOPOLOGY if isinstance(macro.mesh, cls))
         for name, t in self.frames:
             grid = ET.SubElement(coll, "Grid", {"Name": name, "GridType": "Uniform"})
             ET.SubElement(grid, "Time", {"Value": f"{t:.10g}"})
             topo = ET.SubElement(grid, "Topology", {
-                "TopologyType": _TOPOLOGY[macro.element],
+                "TopologyType": topology,
                 "NumberOfElements": str(cells[1])})
             item(topo, "mesh/cells", (cells[1], cells[0]), "Int")
             geo = ET.SubElement(grid, "Geometry", {"GeometryType": "XYZ"})

@@ -71,6 +71,9 @@ from dem.io.scene import schema_markdown as _markdown
 POSITIVE = Range(0.0, lo_closed=False)
 NONNEGATIVE = Range(0.0)
 COMPONENTS = ("x", "y", "z")
+#: element names of 2D and 3D meshes (hmm.macro.ELEMENTS gives their classes)
+ELEMENTS_2D = ("quad1", "quad2", "quad8", "tri1", "tri2")
+ELEMENTS_3D = ("hex1", "tet1")
 #: most elements of a structured mesh ([mesh] size and cells); each has Gauss points
 MAX_ELEMENTS = 10**6
 
@@ -78,8 +81,7 @@ SCHEMA = {
     "mesh": Section(doc="The macro domain and its finite elements.", required=True, keys={
         "dim": Key("int", default=2, choices=(2, 3), doc="2 (plane strain) or 3."),
         "element": Key("str", default="quad1",
-                       choices=("quad1", "quad2", "quad8", "tri1", "tri2", "hex1",
-                                "tet1"),
+                       choices=ELEMENTS_2D + ELEMENTS_3D,
                        doc="Element type (2D: quad1 quad2 quad8 tri1 tri2; 3D: hex1 "
                            "tet1)."),
         "size": Key("vector", "m", range=POSITIVE,
@@ -245,8 +247,7 @@ def validate_problem(data, source="<problem>", base_dir="."):
                      f"a structured mesh may have", "[mesh]")
     elif m["size"] is not None or m["cells"] is not None:
         ctx.fail("takes a mesh file or size and cells, not both", "[mesh]")
-    two_d = m["element"] in ("quad1", "quad2", "quad8", "tri1", "tri2")
-    if two_d != (m["dim"] == 2):
+    if (m["element"] in ELEMENTS_2D) != (m["dim"] == 2):
         ctx.fail(f"element \"{m['element']}\" does not fit dim = {m['dim']}", "[mesh]")
     for i, c in enumerate(out["dirichlet"]):
         if COMPONENTS.index(c["component"]) >= m["dim"]:

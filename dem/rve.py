@@ -45,7 +45,7 @@ from scipy.linalg import fractional_matrix_power
 
 from .boundary import PeriodicCell
 from .contact.laws import Law, law_from_spec
-from .observers import contact_summary
+from .rve_measure import measure_periodic
 from .simulation import Simulation, SimulationError
 from .state import Bodies
 
@@ -284,39 +284,32 @@ class RVE:
     # ------------------------------------------------------------------ response
     def response(self, tangent=True):
         """Stress (d, d) [Pa], contact tangent (d, d, d, d) [Pa] or None, and the
-        measures of the packing, from the current state (a dict)."""
+        measures of the packing, from the current state (a dict).
+
+        One compiled pass over the contacts (:func:`dem.rve_measure.measure_periodic`)
+        into arrays kept with the RVE; the returned arrays are fresh copies.
+        """
         sim = self.sim
         sim.prime()
         b = sim.bodies
-        c = contact_summary(sim)
-        v = self.volume
-        f, br = c["force"], c["branch"]
-        sig = -np.einsum("ca,cb->ab", f, br)
-        sig -= np.einsum("p,pa,pb->ab", b.mass, b.vel, b.vel)
-        sig = 0.5 * (sig + sig.T) / v
-        out = {"stress": sig, "n_contacts": int(f.shape[0])}
-        # unbalanced force: mean net contact force on a particle over mean contact force
-        net = np.zeros((b.n, self.dim))
-        np.add.at(net, c["i"], -f)
-        np.add.at(net, c["j"], f)
-        fmean = float(np.linalg.norm(f, axis=1).mean()) if f.shape[0] else 0.0
-        out["unbalanced"] = (float(np.linalg.norm(net, axis=1).mean()) / fmean
-                             if fmean > 0.0 else math.inf)
-        n = c["normal"]
-        out["fabric"] = (np.einsum("ci,cj->ij", n, n) / n.shape[0] if n.shape[0]
-                         else np.zeros((self.dim, self.dim)))
-        deg = np.bincount(np.concatenate([c["i"], c["j"]]), minlength=b.n)
-        out["coordination"] = 2.0 * f.shape[0] / b.n
-        out["rattlers"] = int(np.count_nonzero(deg < 2))
+        d = self.dim
+        if getattr(self, "_scratch", None) is None or self._scratch[0].shape[0] != b.n:
+            self._scratch = (np.zeros((b.n, d)), np.zeros(b.n, np.int64),
+                             np.zeros((d, d)), np.zeros((d, d, d, d)), np.zeros((d, d)))
+        net, degree, sig, cmat, fabric = self._scratch
+        nl = sim.neighbors
+        n_c, unbalanced = measure_periodic(
+            sim.model.kind("pp").code, b.pos, b.vel, b.mass, b.radius, b.mat_id,
+            nl.pairs, nl.img, sim._hmat, sim.fpair, sim._params_pp, self.volume,
+            bool(tangent), net, degree, sig, cmat, fabric)
         vs = solid_volume(b)
-        out["void_ratio"] = (v - vs) / vs
+        out = {"stress": sig.copy(), "n_contacts": int(n_c),
+               "unbalanced": float(unbalanced), "fabric": fabric.copy(),
+               "coordination": 2.0 * n_c / b.n,
+               "rattlers": int(np.count_nonzero(degree < 2)),
+               "void_ratio": (self.volume - vs) / vs}
         if tangent:
-            kn, kt = c["kn"], c["kt"]
-            eye = np.eye(self.dim)
-            cn = np.einsum("c,ci,cj,ck,cl->ijkl", kn, n, br, n, br)
-            proj = eye[None] - np.einsum("ci,ck->cik", n, n)
-            ct = np.einsum("c,cik,cj,cl->ijkl", kt, proj, br, br)
-            out["tangent"] = (cn + ct) / v
+            out["tangent"] = cmat.copy()
         return out
 
     def stress(self):

@@ -238,3 +238,46 @@ def momenta(pos, vel, ang_vel, mass, inertia):
     spin = _spin3(inertia) * w if inertia.shape[1] == 3 else w * inertia[:, :1]
     ell = np.sum(np.cross(x, mass[:, None] * v), axis=0) + np.sum(spin, axis=0)
     return p, ell
+
+
+def periodic_homogenisation(pos, vel, mass, radius, hmat, pairs, img, fpair, kn, kt,
+                            volume):
+    """Love-Weber stress, eq 29 tangent, fabric and unbalanced ratio of a periodic
+    packing, written out contact by contact.
+
+    ``pairs``/``img`` are candidate pairs and the periodic image of j; ``fpair`` the
+    force on j; ``kn``/``kt`` scalars (a linear law). Returns a dict.
+    """
+    n, d = pos.shape
+    sig = np.zeros((d, d))
+    cmat = np.zeros((d, d, d, d))
+    fabric = np.zeros((d, d))
+    net = np.zeros((n, d))
+    degree = np.zeros(n, int)
+    norms = []
+    for k, (i, j) in enumerate(pairs):
+        branch = pos[j] - pos[i] + hmat @ img[k]
+        dist = np.linalg.norm(branch)
+        if radius[i] + radius[j] - dist <= 0.0:
+            continue
+        nrm = branch / dist
+        f = fpair[k]
+        sig -= np.outer(f, branch)
+        net[i] -= f
+        net[j] += f
+        degree[[i, j]] += 1
+        norms.append(np.linalg.norm(f))
+        fabric += np.outer(nrm, nrm)
+        for a in range(d):
+            for b in range(d):
+                for c in range(d):
+                    for e in range(d):
+                        s = kn * nrm[a] * nrm[c] + kt * ((a == c) - nrm[a] * nrm[c])
+                        cmat[a, b, c, e] += s * branch[b] * branch[e]
+    for p in range(n):
+        sig -= mass[p] * np.outer(vel[p], vel[p])
+    n_c = len(norms)
+    return {"stress": 0.5 * (sig + sig.T) / volume, "tangent": cmat / volume,
+            "fabric": fabric / max(n_c, 1), "n_contacts": n_c,
+            "coordination": 2.0 * n_c / n, "rattlers": int(np.sum(degree < 2)),
+            "unbalanced": np.linalg.norm(net, axis=1).mean() / np.mean(norms)}

@@ -1,0 +1,143 @@
+"""Compiled homogenisation of a periodic sphere/disk packing (kernel module).
+
+One pass over the Verlet pairs of an RVE gives what a relaxation checks every few dozen
+steps and what a Gauss point returns: the Love-Weber stress with periodic branch
+vectors plus the kinetic part, the unbalanced-force ratio, the contact-stiffness
+tangent (paper eq 29), the fabric tensor and each body's contact count. It is the
+compiled twin of :func:`dem.observers.contact_summary` followed by the sums of
+:meth:`dem.rve.RVE.response`, which it replaces in the relaxation loop; the tests hold
+the two equal.
+
+A pair touches when ``r_i + r_j - |l| > 0`` with ``l = x_j - x_i + H m`` the branch
+vector across the pair's periodic image ``m``: the test of ``contact_summary``, on the
+forces of the last force evaluation (``fpair``, the force on j).
+"""
+
+import math
+
+from ._jit import kernel
+from .contact.laws import stiffness_hertz_mindlin, stiffness_linear
+
+
+@kernel
+def measure_periodic(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, fpair,
+                     params, volume, use_tangent, net_out, degree_out, stress_out,
+                     tangent_out, fabric_out):
+    """Stress, tangent, fabric and unbalanced force of the touching pairs.
+
+    Parameters
+    ----------
+    code : int
+        Law code of the sphere-sphere contacts (0 linear, 1 Hertz-Mindlin).
+    pos, vel : (n, d) f8
+        Positions [m] and fluctuation velocities [m/s].
+    mass, radius : (n,) f8
+        [kg], [m].
+    mat_id : (n,) i8
+    pairs, img : (m, 2) i8, (m, d) i8
+        Verlet pairs and the periodic image of j.
+    hmat : (d, d) f8
+        Cell matrix [m] (columns are the cell vectors).
+    fpair : (m, d) f8
+        Force on j [N] of each pair at the last force evaluation.
+    params : (n_mat, n_mat, n_p) f8
+        The law's pair-parameter table.
+    volume : float
+        Cell volume [m^3] (area [m^2] in 2D).
+    use_tangent : bool
+        Compute ``tangent_out`` (eq 29); else it is left as it is.
+
+    Modified in place: ``net_out`` (n, d) net contact force per body [N];
+    ``degree_out`` (n,) contacts per body; ``stress_out`` (d, d) [Pa], tension
+    positive, symmetrised; ``tangent_out`` (d, d, d, d) [Pa]; ``fabric_out`` (d, d),
+    the mean of n (x) n over contacts (zero without contacts).
+
+    Returns ``(n_contacts, unbalanced)``: the touching pairs and the unbalanced-force
+    ratio, the mean norm of the net contact force on a body over the mean contact
+    force norm (infinite without contacts).
+    """
+    n, d = pos.shape
+    net_out[:, :] = 0.0
+    degree_out[:] = 0
+    stress_out[:, :] = 0.0
+    fabric_out[:, :] = 0.0
+    if use_tangent:
+        tangent_out[:, :, :, :] = 0.0
+    n_c = 0
+    fsum = 0.0
+    br = [0.0, 0.0, 0.0]
+    nv = [0.0, 0.0, 0.0]
+    for k in range(pairs.shape[0]):
+        i = pairs[k, 0]
+        j = pairs[k, 1]
+        dist2 = 0.0
+        for a in range(d):
+            la = pos[j, a] - pos[i, a]
+            for c in range(d):
+                la += hmat[a, c] * img[k, c]
+            br[a] = la
+            dist2 += la * la
+        dist = math.sqrt(dist2)
+        ov = radius[i] + radius[j] - dist
+        if not ov > 0.0:
+            continue
+        n_c += 1
+        degree_out[i] += 1
+        degree_out[j] += 1
+        f2 = 0.0
+        for a in range(d):
+            fa = fpair[k, a]
+            f2 += fa * fa
+            net_out[i, a] -= fa
+            net_out[j, a] += fa
+            nv[a] = br[a] / dist
+            for b in range(d):
+                stress_out[a, b] -= fa * br[b]
+        fsum += math.sqrt(f2)
+        for a in range(d):
+            for b in range(d):
+                fabric_out[a, b] += nv[a] * nv[b]
+        if use_tangent:
+            r_eff = radius[i] * radius[j] / (radius[i] + radius[j])
+            p = params[mat_id[i], mat_id[j]]
+            if code == 0:
+                kn, kt = stiffness_linear(ov, r_eff, p)
+            else:
+                kn, kt = stiffness_hertz_mindlin(ov, r_eff, p)
+            for a in range(d):
+                for b in range(d):
+                    for c in range(d):
+                        kron = 1.0 if a == c else 0.0
+                        sn = kn * nv[a] * nv[c] + kt * (kron - nv[a] * nv[c])
+                        for e in range(d):
+                            tangent_out[a, b, c, e] += sn * br[b] * br[e]
+    for p_ in range(n):  # the kinetic part of the fluctuations
+        for a in range(d):
+            for b in range(d):
+                stress_out[a, b] -= mass[p_] * vel[p_, a] * vel[p_, b]
+    for a in range(d):
+        for b in range(a, d):
+            s = 0.5 * (stress_out[a, b] + stress_out[b, a]) / volume
+            stress_out[a, b] = s
+            stress_out[b, a] = s
+    if use_tangent:
+        for a in range(d):
+            for b in range(d):
+                for c in range(d):
+                    for e in range(d):
+                        tangent_out[a, b, c, e] /= volume
+    if n_c == 0:
+        return 0, math.inf
+    for a in range(d):
+        for b in range(d):
+            fabric_out[a, b] /= n_c
+    net = 0.0
+    for p_ in range(n):
+        s = 0.0
+        for a in range(d):
+            s += net_out[p_, a] * net_out[p_, a]
+        net += math.sqrt(s)
+    fmean = fsum / n_c
+    if not fmean > 0.0:
+        return n_c, math.inf
+    return n_c, (net / n) / fmean

@@ -45,8 +45,9 @@ usage::
                                        # and docs/figures/rve_vs_yade.png
 
 environment: DIMS ("2"; "2 3" adds the 1,000-sphere triaxial test), AXIAL (0.06,
-total axial strain), ROUNDS (3) and CALLS (5) of the timing, YADE (the executable,
-default ``yade``). Without YADE the peer is skipped and the JSON says so.
+total axial strain), ROUNDS (3) and CALLS (5) of the timing, PART ("all"; "curves" or
+"timing" runs one half and keeps the other's entries of the JSON), YADE (the
+executable, default ``yade``). Without YADE the peer is skipped and the JSON says so.
 """
 
 import json
@@ -488,26 +489,12 @@ def _joined(runs, key):
     return [x for r in runs for x in r[key]]
 
 
-def main():
-    dims = [int(x) for x in C.env_list("DIMS", "2")]
-    axial = float(os.environ.get("AXIAL", "0.06"))
-    rounds, calls = C.env_int("ROUNDS", 3), C.env_int("CALLS", 5)
-    exe = yade_executable()
-    data = {"benchmark": "rve_vs_yade", "date": C.now(), "machine": C.machine_info(),
-            "versions": C.our_versions(), "revision": C.git_revision(),
-            "settings": {"p0": P0, "radius": list(RADIUS), "density": DENSITY,
-                         "axial_strain": axial, **TEST, "setup": SETUP,
-                         "call_strain": CALL_STRAIN, "rounds": rounds, "calls": calls,
-                         "stepping_steps": STEPPING_STEPS},
-            "comparison": []}
-    if exe is None:
-        data["status"] = "skipped"
-        data["reason"] = "YADE is not installed (no 'yade' executable on PATH)"
-        print(data["reason"] + ": the peer is skipped")
-    exports = {}
+def curves(data, dims, axial, exe):
+    """The drained tests of both engines and their deviation, into ``data``."""
+    data["comparison"] = []
     for dim in dims:
         t0 = time.perf_counter()
-        ex = exports[dim] = export(dim)
+        ex = export(dim)
         row = {"dim": dim, "particles": len(ex["radius"]), "dt": ex["dt"],
                "yade_thickness": ex["thickness"]}
         print(f"{dim}D packing ready ({time.perf_counter() - t0:.0f} s)", flush=True)
@@ -524,9 +511,14 @@ def main():
                   f"peak = {row['deviation']['max_rel_deviation']:.4f}", flush=True)
         data["comparison"].append(row)
     for dim in (2, 3):
-        data.setdefault(f"max_rel_deviation_{dim}d", None)
-    # timing: the 2D RVE, rounds of ours and YADE alternating
-    ex = exports.get(2) or export(2)
+        if dim not in dims or exe is None:
+            data[f"max_rel_deviation_{dim}d"] = None
+
+
+def timing(data, rounds, calls, exe):
+    """Gauss-point calls and stepping of the 2D RVE, rounds of ours and YADE's
+    alternating, into ``data``."""
+    ex = export(2)
     ours_runs, yade_runs = [], []
     for k in range(rounds):
         ours_runs.append(C.run_worker(__file__, ["timing", calls], threads=1))
@@ -565,6 +557,41 @@ def main():
     else:
         data["speedup_rve_call"] = data["speedup_stepping"] = None
     data["timing"] = t
+
+
+def main():
+    """``PART``: "all" (default), "curves" or "timing"; a part alone replaces its own
+    entries of an existing JSON and keeps the other part's (each entry says when and
+    at which revision it was measured)."""
+    dims = [int(x) for x in C.env_list("DIMS", "2")]
+    axial = float(os.environ.get("AXIAL", "0.06"))
+    rounds, calls = C.env_int("ROUNDS", 3), C.env_int("CALLS", 5)
+    part = os.environ.get("PART", "all")
+    if part not in ("all", "curves", "timing"):
+        raise SystemExit(f"PART must be all, curves or timing, got {part!r}")
+    exe = yade_executable()
+    data = {}
+    if part != "all" and OUT.exists():
+        data = json.loads(OUT.read_text())
+    stamp = {"date": C.now(), "revision": C.git_revision(), "loadavg": C.loadavg()}
+    data.update({"benchmark": "rve_vs_yade", "date": stamp["date"],
+                 "machine": C.machine_info(), "versions": C.our_versions(),
+                 "revision": stamp["revision"]})
+    data.setdefault("settings", {}).update(
+        {"p0": P0, "radius": list(RADIUS), "density": DENSITY, **TEST, "setup": SETUP,
+         "call_strain": CALL_STRAIN, "stepping_steps": STEPPING_STEPS})
+    if exe is None:
+        data["status"] = "skipped"
+        data["reason"] = "YADE is not installed (no 'yade' executable on PATH)"
+        print(data["reason"] + ": the peer is skipped")
+    if part in ("all", "curves"):
+        data["settings"]["axial_strain"] = axial
+        curves(data, dims, axial, exe)
+        data["measured_curves"] = stamp
+    if part in ("all", "timing"):
+        data["settings"].update(rounds=rounds, calls=calls)
+        timing(data, rounds, calls, exe)
+        data["measured_timing"] = stamp
     data["loadavg_end"] = C.loadavg()
     data.setdefault("status", "ok")
     C.write_json(OUT, data)

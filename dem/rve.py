@@ -46,7 +46,7 @@ from scipy.linalg import fractional_matrix_power
 from .boundary import PeriodicCell
 from .contact.laws import Law, law_from_spec
 from .rve_measure import measure_periodic
-from .simulation import Simulation, SimulationError
+from .simulation import Simulation, SimulationError, critical_time_step
 from .state import Bodies
 
 log = logging.getLogger(__name__)
@@ -54,6 +54,24 @@ log = logging.getLogger(__name__)
 
 class RelaxationError(SimulationError):
     """The RVE did not reach quasi-static equilibrium within its step cap."""
+
+
+#: default time step of an RVE as a fraction of the critical step. A quasi-static cell
+#: needs no resolved collisions (the engine's DT_FACTOR of 0.07 is set by binary
+#: impacts); its relaxation takes a fixed physical time, so its steps shrink with a
+#: larger dt, and a strain cap per step is then a slower load in units of the
+#: packing's own response time. Measured on the 400-disk call of
+#: benchmarks/rve_size_accuracy.py (docs/performance.md): 0.3 takes a third of the
+#: steps of 0.07 and is closer to the slow-loading limit; packings blow up from 0.5
+#: (docs/stability.md), so 0.3 keeps a margin of 1.5
+DT_FACTOR = 0.3
+
+
+def quasi_static_dt(bodies, model, dt=None):
+    """``dt`` [s], or by default ``DT_FACTOR`` x the critical step of the scene."""
+    if dt is not None:
+        return dt
+    return DT_FACTOR * critical_time_step(bodies, model)[0]
 
 
 # --------------------------------------------------------------------------- packings
@@ -189,7 +207,7 @@ class RVE:
     damping : float
         Cundall local damping in [0, 1) (quasi-static runs: 0.2 to 0.7).
     dt : float, optional
-        Time step [s]; default ``DT_FACTOR`` x the critical step.
+        Time step [s]; default :data:`DT_FACTOR` (0.3) x the critical step.
     mass_scale : float
         Density scaling factor (>= 1 speeds quasi-static runs up by sqrt of it; the
         masses, the kinetic stress and the time step are those of the scaled
@@ -223,7 +241,8 @@ class RVE:
         check_settings(mass_scale, max_step_strain, tol, stress_tol, max_relax_steps,
                        check_every)
         scale_masses(bodies, mass_scale)
-        sim = Simulation(bodies, law, dt=dt, damping=damping, box=cell, threads=threads)
+        sim = Simulation(bodies, law, dt=quasi_static_dt(bodies, law, dt), damping=damping,
+                         box=cell, threads=threads)
         self._setup(sim, law, mass_scale, max_step_strain, tol, stress_tol,
                     max_relax_steps, check_every, np.eye(cell.dim))
 

@@ -55,6 +55,7 @@ from .rve import (
     RelaxationError,
     check_settings,
     particle_radii,
+    quasi_static_dt,
     scale_masses,
     solid_volume,
     store_settings,
@@ -130,8 +131,9 @@ check_every, threads
             e = np.eye(d)[a]
             walls[a, 0] = bodies.add_plane(lo, e)
             walls[a, 1] = bodies.add_plane(hi, -e)
-        sim = Simulation(bodies, ContactModel(law, wall_law), dt=dt, damping=damping,
-                         threads=threads)
+        model = ContactModel(law, wall_law)
+        sim = Simulation(bodies, model, dt=quasi_static_dt(bodies, model, dt),
+                         damping=damping, threads=threads)
         self._setup(sim, law, wall_law, walls, hi - lo, mass_scale, max_step_strain, tol,
                     stress_tol, max_relax_steps, check_every)
 

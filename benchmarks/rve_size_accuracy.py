@@ -1,0 +1,288 @@
+"""Choosing an RVE: its size against the scatter of the answer, and the strain cap per
+step against the stress error, each against the time it costs.
+
+Two charts, the data a user needs to pick the smallest RVE that answers the question.
+
+**Size.** For each RVE size (disks, 2D: ``SIZES``, default 100 ... 4,000) and each of
+``SEEDS`` packings (seeds 0 ... SEEDS-1): a packing is generated (radii uniform in
+0.8-1.2 mm, linear springs kn = 1e8 N/m, kt = 5e7 N/m, consolidated frictionless to
+100 kPa, then friction 0.5) and run through the drained biaxial test of ``hmm rve``
+(constant lateral stress 100 kPa, axial strain to ``AXIAL`` = 3 % in increments of
+1e-3, each relaxed to an unbalanced-force ratio of 1e-3). Reported per size: the peak
+friction angle over the seeds (mean, standard deviation, range) and the median wall
+time of one increment (one Gauss-point-sized call under mixed control). The scatter
+of the peak angle over seeds is the RVE's own sampling error: a Gauss point cannot
+be more certain than it.
+
+**Strain cap.** On the 400-disk packing (seed 1) at three states of a drained biaxial
+path (axial strain 0, 0.5 %, 1 %), a Gauss-point call -- a strain increment of
+``(+3e-4, -1e-3)`` (lateral, axial) under full strain control, relaxed -- is made with
+the largest strain per time step ``max_step_strain`` from 1e-4 down to 2e-7 and the
+relaxation tolerance ``tol`` 1e-3 and 1e-4. The error is ``|sigma - sigma_ref| /
+|sigma_ref|`` (Frobenius), the reference the same call at 1e-7 and tol 1e-5; the
+time is the call's wall time (median of ``REPS``). It shows which knob sets the error:
+the loading rate, not the relaxation tolerance.
+
+usage::
+
+    python benchmarks/rve_size_accuracy.py   # results/rve_size_accuracy.{json,png}
+
+environment: SIZES ("100 200 400 1000 2000 4000"), SEEDS (5), AXIAL (0.03), CAPS
+("1e-4 1e-5 3e-6 1e-6 5e-7 2e-7"), REPS (3), JOBS (2: worker processes at once, one
+thread each), PART ("all", "size" or "cap"; one part keeps the other's entries).
+"""
+
+import json
+import os
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import _common as C
+
+OUT = C.RESULTS / "rve_size_accuracy.json"
+FIGURE = C.RESULTS / "rve_size_accuracy.png"
+
+P0 = 1.0e5
+RADIUS = (0.8e-3, 1.2e-3)
+LAW = {"kn": 1e8, "kt": 5e7, "mu": 0.5}
+INCREMENT = 1e-3
+CALL_STRAIN = (3e-4, -1e-3)  # lateral, axial: a dilating biaxial increment
+CALL_STATES = (0.0, 0.005, 0.01)  # axial strains of the states the calls start from
+TOLS = (1e-3, 1e-4)
+REFERENCE = {"max_step_strain": 1e-7, "tol": 1e-5}
+
+
+def _config(n, seed, axial):
+    from hmm.experiment import validate_config
+
+    return validate_config({
+        "packing": {"dim": 2, "count": n, "radius": list(RADIUS), "p0": P0,
+                    "seed": seed, "consolidation_friction": 0.0},
+        "contact": {"law": "linear", **LAW},
+        "test": {"axial_strain": axial, "increment": INCREMENT}}, "rve_size.toml")
+
+
+def size_run(n, seed, axial):
+    """One packing through the drained biaxial test: peak angle and increment times."""
+    from hmm.experiment import compress, make_packing
+
+    cfg = _config(n, seed, axial)
+    t0 = time.perf_counter()
+    packing = make_packing(cfg)
+    t_gen = time.perf_counter() - t0
+    times = []
+    last = [time.perf_counter()]
+
+    def tick(k):
+        now = time.perf_counter()
+        if k > 0:
+            times.append(now - last[0])
+        last[0] = now
+
+    res = compress(cfg, on_increment=tick, packing=packing)
+    s = res.summary
+    return {"n": n, "seed": seed, "generation_time": t_gen,
+            "peak_friction_angle": s["peak_friction_angle"],
+            "peak_axial_strain": s["peak_axial_strain"],
+            "initial_void_ratio": s["initial_void_ratio"],
+            "increment_time": C.median(times), "increment_times": times,
+            "relax_steps": res.curves["relax_steps"][1:].tolist()}
+
+
+def cap_run(reps):
+    """Gauss-point calls at every cap and tolerance from three states of one packing."""
+    import numpy as np
+
+    from hmm.experiment import _curves, make_packing
+
+    cfg = _config(400, 1, INCREMENT)
+    rve, confining, _ = make_packing(cfg)
+    rve.consolidate(confining)
+    deps = np.diag(CALL_STRAIN)
+    states = []
+    done = 0.0
+    for target in CALL_STATES:  # walk the drained path to each state, snapshot it
+        if target > done:
+            _curves(rve, confining, np.arange(done + INCREMENT, target + 1e-12, INCREMENT),
+                    None)
+            done = target
+        states.append(rve.snapshot())
+    default = (rve.max_step_strain, rve.tol)
+
+    def call(snap, cap, tol):
+        rve.restore(snap)
+        rve.max_step_strain, rve.tol = cap, tol
+        s0 = rve.sim.step
+        t0 = time.perf_counter()
+        sig = rve.apply_strain(deps)
+        rve.tangent()
+        return sig, time.perf_counter() - t0, rve.sim.step - s0
+
+    caps = [float(x) for x in C.env_list("CAPS", "1e-4 1e-5 3e-6 1e-6 5e-7 2e-7")]
+    rows = []
+    for k, snap in enumerate(states):
+        ref, t_ref, steps_ref = call(snap, REFERENCE["max_step_strain"], REFERENCE["tol"])
+        for tol in TOLS:
+            for cap in caps:
+                runs = [call(snap, cap, tol) for _ in range(reps)]
+                sig = runs[0][0]
+                if any(not np.array_equal(r[0], sig) for r in runs):
+                    raise RuntimeError("repeated calls from one state differ")
+                rows.append({"state": k, "axial_strain": CALL_STATES[k], "cap": cap,
+                             "tol": tol, "time": C.median([r[1] for r in runs]),
+                             "steps": runs[0][2],
+                             "error": float(np.linalg.norm(sig - ref)
+                                            / np.linalg.norm(ref)),
+                             "stress": sig.tolist()})
+        rows.append({"state": k, "axial_strain": CALL_STATES[k], "reference": True,
+                     **REFERENCE, "time": t_ref, "steps": steps_ref,
+                     "stress": ref.tolist()})
+    rve.max_step_strain, rve.tol = default
+    return {"rows": rows}
+
+
+def summarize_sizes(runs):
+    import numpy as np
+
+    out = []
+    for n in sorted({r["n"] for r in runs}):
+        mine = [r for r in runs if r["n"] == n]
+        phi = np.array([r["peak_friction_angle"] for r in mine])
+        out.append({"n": n, "seeds": len(mine), "peak_friction_angle_mean": phi.mean(),
+                    "peak_friction_angle_std": phi.std(ddof=1) if phi.size > 1 else 0.0,
+                    "peak_friction_angle_range": [phi.min(), phi.max()],
+                    "increment_time": C.median([r["increment_time"] for r in mine]),
+                    "generation_time": C.median([r["generation_time"] for r in mine])})
+    return out
+
+
+def summarize_caps(rows):
+    """Per (cap, tol): the largest error over the states and the median time."""
+    out = []
+    keys = sorted({(r["cap"], r["tol"]) for r in rows if not r.get("reference")})
+    for cap, tol in keys:
+        mine = [r for r in rows if r.get("cap") == cap and r.get("tol") == tol
+                and not r.get("reference")]
+        out.append({"cap": cap, "tol": tol, "max_error": max(r["error"] for r in mine),
+                    "median_error": C.median([r["error"] for r in mine]),
+                    "time": C.median([r["time"] for r in mine]),
+                    "steps": C.median([r["steps"] for r in mine])})
+    return out
+
+
+def visualize(data):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(13.0, 3.8), layout="constrained")
+    FigureCanvasAgg(fig)
+    ax1, ax2, ax3 = fig.subplots(1, 3)
+    sizes = data.get("size_summary") or []
+    if sizes:
+        n = [s["n"] for s in sizes]
+        for r in data["size_runs"]:
+            ax1.plot(r["n"], r["peak_friction_angle"], "o", color="0.7", ms=4)
+        ax1.errorbar(n, [s["peak_friction_angle_mean"] for s in sizes],
+                     yerr=[s["peak_friction_angle_std"] for s in sizes], fmt="k-s",
+                     capsize=3, label="mean ± std over seeds")
+        ax1.set(xscale="log", xlabel="disks in the RVE", ylabel="peak friction angle [deg]",
+                title="size: scatter of the answer")
+        ax1.legend(loc="upper right")
+        ax2.loglog(n, [s["increment_time"] for s in sizes], "k-o")
+        for s in sizes:
+            ax2.annotate(f"±{s['peak_friction_angle_std']:.2f}°",
+                         (s["n"], s["increment_time"]), textcoords="offset points",
+                         xytext=(4, -10), fontsize=8)
+        ax2.set(xlabel="disks in the RVE", ylabel="time per 1e-3 increment [s]",
+                title="size: cost (labels: std of peak angle)")
+    caps = data.get("cap_summary") or []
+    for tol, style in zip(TOLS, ("k-o", "r--s"), strict=True):
+        mine = [c for c in caps if c["tol"] == tol]
+        if not mine:
+            continue
+        ax3.loglog([c["time"] for c in mine], [c["max_error"] for c in mine], style,
+                   label=f"tol = {tol:g}")
+        for c in mine:
+            ax3.annotate(f"{c['cap']:.0e}", (c["time"], c["max_error"]), fontsize=7,
+                         textcoords="offset points", xytext=(3, 3))
+    if caps:
+        ax3.set(xlabel="time per Gauss-point call [s]",
+                ylabel="stress error (max over 3 states)",
+                title="400 disks: strain cap per step (labels)")
+        ax3.legend(loc="upper right")
+    return fig
+
+
+def main():
+    part = os.environ.get("PART", "all")
+    if part not in ("all", "size", "cap"):
+        raise SystemExit(f"PART must be all, size or cap, got {part!r}")
+    sizes = [int(x) for x in C.env_list("SIZES", "100 200 400 1000 2000 4000")]
+    seeds = C.env_int("SEEDS", 5)
+    axial = float(os.environ.get("AXIAL", "0.03"))
+    reps, jobs = C.env_int("REPS", 3), C.env_int("JOBS", 2)
+    data = json.loads(OUT.read_text()) if part != "all" and OUT.exists() else {}
+    stamp = {"date": C.now(), "revision": C.git_revision(), "loadavg": C.loadavg(),
+             "jobs": jobs}
+    data.update({"benchmark": "rve_size_accuracy", "date": stamp["date"],
+                 "machine": C.machine_info(), "versions": C.our_versions(),
+                 "revision": stamp["revision"]})
+    data.setdefault("settings", {}).update(
+        {"p0": P0, "radius": list(RADIUS), "law": LAW, "increment": INCREMENT,
+         "call_strain": list(CALL_STRAIN), "call_states": list(CALL_STATES),
+         "tols": list(TOLS), "reference": REFERENCE})
+    if part in ("all", "cap"):
+        res = C.run_worker(__file__, ["cap", reps], threads=1, timeout=7200)
+        if not res.get("ok"):
+            raise RuntimeError("strain-cap worker failed: " + res["error"])
+        data["cap_rows"] = res["rows"]
+        data["cap_summary"] = summarize_caps(res["rows"])
+        data["measured_cap"] = stamp
+        for c in data["cap_summary"]:
+            print(f"cap {c['cap']:.0e} tol {c['tol']:.0e}: error {c['max_error']:.2e}, "
+                  f"{1e3 * c['time']:.1f} ms ({c['steps']:.0f} steps)", flush=True)
+    if part in ("all", "size"):
+        data["settings"].update(sizes=sizes, seeds=seeds, axial_strain=axial)
+        tasks = [(n, s) for n in sorted(sizes, reverse=True) for s in range(seeds)]
+
+        def one(task):
+            n, s = task
+            r = C.run_worker(__file__, ["size", n, s, axial], threads=1, timeout=14400)
+            print(f"size {n} seed {s}: " + (f"peak {r['peak_friction_angle']:.2f} deg, "
+                  f"{r['increment_time']:.3f} s per increment" if r.get("ok")
+                  else r["error"]), flush=True)
+            return r
+
+        with ThreadPoolExecutor(max_workers=jobs) as pool:
+            runs = list(pool.map(one, tasks))
+        bad = [r["error"] for r in runs if not r.get("ok")]
+        if bad:
+            raise RuntimeError("a size run failed: " + bad[0])
+        data["size_runs"] = sorted(runs, key=lambda r: (r["n"], r["seed"]))
+        data["size_summary"] = summarize_sizes(runs)
+        data["measured_size"] = stamp
+    C.write_json(OUT, data)
+    FIGURE.parent.mkdir(parents=True, exist_ok=True)
+    visualize(data).savefig(FIGURE, dpi=120)
+    for s in data.get("size_summary") or []:
+        print(f"{s['n']:5d} disks: peak phi {s['peak_friction_angle_mean']:.2f} ± "
+              f"{s['peak_friction_angle_std']:.2f} deg, {s['increment_time']:.3f} s per "
+              f"increment")
+
+
+def worker(args):
+    if args[0] == "size":
+        C.emit_result(size_run(int(args[1]), int(args[2]), float(args[3])))
+    elif args[0] == "cap":
+        C.emit_result(cap_run(int(args[1])))
+
+
+if __name__ == "__main__":
+    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+    if len(sys.argv) > 1 and sys.argv[1] == "--worker":
+        worker(sys.argv[2:])
+    else:
+        main()

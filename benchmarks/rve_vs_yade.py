@@ -1,10 +1,11 @@
 """The periodic RVE against YADE: the same packing, law and test in both engines.
 
-Cross-validation. The 400-disk packing of ``benchmarks/rve_call.py`` (radii uniform in
+Cross-validation. The 400-disk packings of ``benchmarks/rve_call.py`` (radii uniform in
 0.8-1.2 mm, linear springs kn = 1e8 N/m, kt = 5e7 N/m, friction 0.5, density 2650
-kg/m^3, consolidated frictionless to 100 kPa, then at friction 0.5) is exported --
-positions, radii, masses, moments of inertia, cell -- and both engines start from it
-with fresh contacts (no tangential history). Each runs the drained biaxial test of
+kg/m^3, consolidated frictionless to 100 kPa, then at friction 0.5), one per seed of
+``SEEDS``, and the 1,000-sphere ones in 3D, are exported -- positions, radii, masses,
+moments of inertia, cell -- and both engines start from each with fresh contacts (no
+tangential history). Each runs the drained biaxial test of
 ``hmm rve``: isotropic consolidation at 100 kPa, then axial compression in increments
 of 1e-3, each imposed in steps of at most 1e-5 strain and relaxed (unbalanced-force
 ratio below 1e-3) while a servo holds the lateral stress at 100 kPa. Our side is
@@ -13,8 +14,8 @@ text) that drives YADE's periodic cell through ``O.cell.velGrad`` and ``O.step()
 with the same algorithm (same chunk of 50 steps between checks, same servo gain from
 the contact-stiffness tangent, same tolerances). Measured: the largest difference of
 the deviatoric stress q up to our peak of q, relative to that peak
-(``max_rel_deviation_2d``; the target is 3 %), and the same for p, q/p and the
-volumetric strain. Both engines start from bit-identical contact forces (checked: the
+(``max_rel_deviation_2d``, the largest over the packings; the target is 3 %), and the
+same for p, q/p and the volumetric strain. Both engines start from bit-identical contact forces (checked: the
 stress of the exported state agrees to 1e-9); past the first contact slips the two
 trajectories part as any two chaotic runs do, and the number says how far.
 
@@ -35,16 +36,21 @@ Matching the physics:
 Performance. One Gauss-point call -- from a consolidated state, an axial strain
 increment of 1e-4 imposed in steps of 1e-5, relaxation to an unbalanced-force ratio of
 1e-3, then stress and contact tangent -- timed in both engines on the same packing,
-rounds of ours and YADE's alternating (``speedup_rve_call``); and plain stepping of
-the same RVE, particle-steps per second of our loop over YADE's ``O.step()`` loop
-(``speedup_stepping``). YADE runs on one thread (``-j 1``), ours too.
+rounds of ours and YADE's alternating. YADE's chunks of steps run as a loop of
+``O.step()`` (``speedup_rve_call``, the strongest driver of YADE from Python) and as
+blocking ``O.run(n, True)`` calls, the way FEMxDEM's RVEs are stepped
+(``speedup_rve_call_blocking``: YADE's call as FEMxDEM makes it, its polling floor
+included). Plain stepping of the same RVE, particle-steps per second of our loop over
+YADE's ``O.step()`` loop: ``speedup_stepping``. YADE runs on one thread (``-j 1``),
+ours too.
 
 usage::
 
     python benchmarks/rve_vs_yade.py   # writes benchmarks/results/rve_vs_yade.json
                                        # and docs/figures/rve_vs_yade.png
 
-environment: DIMS ("2"; "2 3" adds the 1,000-sphere triaxial test), AXIAL (0.06,
+environment: DIMS ("2"; "2 3" adds the 1,000-sphere triaxial test), SEEDS ("1 2 3":
+the packings compared, each its own seed), AXIAL (0.06,
 total axial strain), ROUNDS (3) and CALLS (5) of the timing, PART ("all"; "curves" or
 "timing" runs one half and keeps the other's entries of the JSON), YADE (the
 executable, default ``yade``). Without YADE the peer is skipped and the JSON says so.
@@ -81,28 +87,29 @@ STEPPING_STEPS = 2000
 
 
 # --------------------------------------------------------------------------- our side
-def packing(dim):
-    """The consolidated packing of ``dim`` (made once, then read from the scratch dir)."""
+def packing(dim, seed=1):
+    """The consolidated packing of ``dim`` and ``seed`` (made once, then read from the
+    scratch dir)."""
     import dem
     from dem import rve
 
-    path = SCRATCH / f"packing_{dim}d.h5"
+    path = SCRATCH / (f"packing_{dim}d.h5" if seed == 1 else f"packing_{dim}d_s{seed}.h5")
     s = SETUP[dim]
     if path.exists():
         return rve.RVE.load_file(path)
     law = dem.LinearSpring(kn=s["kn"], kt=s["kt"], mu=s["mu"])
-    r = rve.generate(dim, s["n"], RADIUS, law, p0=P0, friction=0.0, seed=1,
+    r = rve.generate(dim, s["n"], RADIUS, law, p0=P0, friction=0.0, seed=seed,
                      density=DENSITY)
     path.parent.mkdir(parents=True, exist_ok=True)
     r.save(path, p0=P0)
     return r
 
 
-def export(dim):
+def export(dim, seed=1):
     """The packing at the working friction, as plain lists for both engines."""
     import numpy as np
 
-    r = packing(dim)
+    r = packing(dim, seed)
     r.consolidate(P0)  # at the working friction, as hmm.experiment.compress does
     b, cell = r.bodies, r.cell
     pos = b.pos.copy()
@@ -274,9 +281,11 @@ def response(with_tangent):
     return out
 
 
-def drive(deps, target, mask, max_step_strain):
+def drive(deps, target, mask, max_step_strain, blocking=False):
     """Strain on the components outside ``mask`` (diagonal ``deps``), a servo on those
-    in it, then relaxation: the algorithm of dem.rve.RVE.load, step for step."""
+    in it, then relaxation: the algorithm of dem.rve.RVE.load, step for step. Each
+    chunk of steps is a loop of ``O.step()``, or with ``blocking`` one ``O.run(n,
+    True)``, the call FEMxDEM's RVEs make."""
     n_load = int(math.ceil(np.abs(deps).max() / max_step_strain)) if deps.any() else 0
     l_load = np.zeros((D, D))
     if n_load:
@@ -311,8 +320,11 @@ def drive(deps, target, mask, max_step_strain):
         if steps - n_load >= ex["max_relax_steps"]:
             raise RuntimeError("YADE cell did not relax")
         set_velgrad(lg)
-        for _ in range(n_chunk):
-            O.step()
+        if blocking:
+            O.run(n_chunk, True)
+        else:
+            for _ in range(n_chunk):
+                O.step()
         set_velgrad(np.zeros((D, D)))
         steps += n_chunk
         if done < n_load:
@@ -382,6 +394,15 @@ else:
         steps.append(n)
     result.update(call_times=times[1:], call_times_no_tangent=times_no_tangent[1:],
                   steps_per_call=steps[1:])
+    blocking = []
+    for _ in range(calls + 1):
+        O.loadTmp("base")
+        t0 = time.perf_counter()
+        drive(deps, np.zeros((D, D)), np.zeros((D, D), bool), ex["max_step_strain"],
+              blocking=True)
+        tangent()
+        blocking.append(time.perf_counter() - t0)
+    result["call_times_blocking"] = blocking[1:]
     n_steps = int(os.environ["RVE_YADE_STEPS"])
     O.loadTmp("base")
     for _ in range(100):
@@ -458,29 +479,35 @@ def deviation(ours, peer):
 
 
 def visualize(data):
+    """One row per dimension: q and volumetric strain, every packing (colour), ours
+    (solid) and YADE's (dashed)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
     rows = [c for c in data["comparison"] if "ours" in c]
-    fig = Figure(figsize=(9.0, 3.4 * max(1, len(rows))), layout="constrained")
+    dims = sorted({c["dim"] for c in rows})
+    fig = Figure(figsize=(9.0, 3.4 * max(1, len(dims))), layout="constrained")
     FigureCanvasAgg(fig)
-    axes = fig.subplots(max(1, len(rows)), 2, squeeze=False)
-    for (ax1, ax2), c in zip(axes, rows, strict=False):
-        label = {2: "400 disks, biaxial", 3: "1,000 spheres, triaxial"}[c["dim"]]
-        for key, style, name in (("ours", "k-", "ours"), ("yade", "r--", "YADE")):
-            if key not in c:
-                continue
-            ea = [100.0 * x for x in c[key]["axial_strain"]]
-            ax1.plot(ea, [q / 1e3 for q in c[key]["q"]], style, label=name)
-            ax2.plot(ea, [100.0 * x for x in c[key]["volumetric_strain"]], style,
-                     label=name)
-        dev = c.get("deviation")
-        title = label if dev is None else (
-            f"{label}: max |Δq| = {100 * dev['max_rel_deviation']:.1f} % of peak q")
+    axes = fig.subplots(max(1, len(dims)), 2, squeeze=False)
+    for (ax1, ax2), dim in zip(axes, dims, strict=False):
+        mine = [c for c in rows if c["dim"] == dim]
+        devs = [c["deviation"]["max_rel_deviation"] for c in mine if "deviation" in c]
+        for k, c in enumerate(mine):
+            for key, ls in (("ours", "-"), ("yade", "--")):
+                if key not in c:
+                    continue
+                ea = [100.0 * x for x in c[key]["axial_strain"]]
+                name = f"{'ours' if key == 'ours' else 'YADE'}, packing {c.get('seed', 1)}"
+                ax1.plot(ea, [q / 1e3 for q in c[key]["q"]], ls, color=f"C{k}", label=name)
+                ax2.plot(ea, [100.0 * x for x in c[key]["volumetric_strain"]], ls,
+                         color=f"C{k}")
+        label = {2: "400 disks, biaxial", 3: "1,000 spheres, triaxial"}[dim]
+        title = label if not devs else (
+            f"{label}: max |Δq| up to the peak ≤ {100 * max(devs):.1f} % of peak q")
         ax1.set(xlabel="axial strain [%]", ylabel="q [kPa]", title=title)
         ax2.set(xlabel="axial strain [%]", ylabel="volumetric strain [%] (+ contraction)")
         ax2.axhline(0.0, color="0.6", lw=0.8)
-        ax1.legend(loc="lower right")
+        ax1.legend(loc="lower right", fontsize=7)
     return fig
 
 
@@ -489,29 +516,36 @@ def _joined(runs, key):
     return [x for r in runs for x in r[key]]
 
 
-def curves(data, dims, axial, exe):
-    """The drained tests of both engines and their deviation, into ``data``."""
+def curves(data, dims, axial, exe, seeds):
+    """The drained tests of both engines and their deviation, into ``data``: one row
+    per dimension and packing seed; ``max_rel_deviation_<d>d`` is the largest over the
+    seeds (the figure shows the first seed)."""
     data["comparison"] = []
     for dim in dims:
-        t0 = time.perf_counter()
-        ex = export(dim)
-        row = {"dim": dim, "particles": len(ex["radius"]), "dt": ex["dt"],
-               "yade_thickness": ex["thickness"]}
-        print(f"{dim}D packing ready ({time.perf_counter() - t0:.0f} s)", flush=True)
-        row["ours"] = ours_compression(ex, axial)
-        print(f"{dim}D ours: {row['ours']['wall_time']:.0f} s", flush=True)
-        if exe is not None:
-            y = run_yade(ex, "compress", axial=axial)
-            row["yade"] = y.pop("curves")
-            row["yade"]["wall_time"] = y["wall_time"]
-            row["yade_info"] = y
-            row["deviation"] = deviation(row["ours"], row["yade"])
-            data[f"max_rel_deviation_{dim}d"] = row["deviation"]["max_rel_deviation"]
-            print(f"{dim}D YADE: {y['wall_time']:.0f} s; max |dq| / q_peak up to the "
-                  f"peak = {row['deviation']['max_rel_deviation']:.4f}", flush=True)
-        data["comparison"].append(row)
+        worst = None
+        for seed in seeds:
+            t0 = time.perf_counter()
+            ex = export(dim, seed)
+            row = {"dim": dim, "seed": seed, "particles": len(ex["radius"]),
+                   "dt": ex["dt"], "yade_thickness": ex["thickness"]}
+            print(f"{dim}D packing {seed} ready ({time.perf_counter() - t0:.0f} s)",
+                  flush=True)
+            row["ours"] = ours_compression(ex, axial)
+            print(f"{dim}D ours: {row['ours']['wall_time']:.0f} s", flush=True)
+            if exe is not None:
+                y = run_yade(ex, "compress", axial=axial)
+                row["yade"] = y.pop("curves")
+                row["yade"]["wall_time"] = y["wall_time"]
+                row["yade_info"] = y
+                row["deviation"] = deviation(row["ours"], row["yade"])
+                dev = row["deviation"]["max_rel_deviation"]
+                worst = dev if worst is None else max(worst, dev)
+                print(f"{dim}D YADE: {y['wall_time']:.0f} s; max |dq| / q_peak up to "
+                      f"the peak = {dev:.4f}", flush=True)
+            data["comparison"].append(row)
+        data[f"max_rel_deviation_{dim}d"] = worst
     for dim in (2, 3):
-        if dim not in dims or exe is None:
+        if dim not in dims:
             data[f"max_rel_deviation_{dim}d"] = None
 
 
@@ -539,6 +573,7 @@ def timing(data, rounds, calls, exe):
             yade_call_time=C.median(_joined(yade_runs, "call_times")),
             yade_call_time_no_tangent=C.median(
                 _joined(yade_runs, "call_times_no_tangent")),
+            yade_call_time_blocking=C.median(_joined(yade_runs, "call_times_blocking")),
             yade_steps_per_call=C.median(_joined(yade_runs, "steps_per_call")),
             yade_particle_steps_per_s=C.median([r["particle_steps_per_s"]
                                                 for r in yade_runs]),
@@ -546,16 +581,21 @@ def timing(data, rounds, calls, exe):
                                                     for r in yade_runs]),
             yade_runs=yade_runs)
         data["speedup_rve_call"] = t["yade_call_time"] / t["ours_call_time"]
+        data["speedup_rve_call_blocking"] = (t["yade_call_time_blocking"]
+                                             / t["ours_call_time"])
         data["speedup_stepping"] = (t["ours_particle_steps_per_s"]
                                     / t["yade_particle_steps_per_s"])
         print(f"Gauss-point call: ours {1e3 * t['ours_call_time']:.1f} ms, YADE "
               f"{1e3 * t['yade_call_time']:.1f} ms (speedup "
-              f"{data['speedup_rve_call']:.2f}); stepping ours "
+              f"{data['speedup_rve_call']:.2f}), with blocking O.run "
+              f"{1e3 * t['yade_call_time_blocking']:.1f} ms (speedup "
+              f"{data['speedup_rve_call_blocking']:.2f}); stepping ours "
               f"{t['ours_particle_steps_per_s'] / 1e6:.2f}, YADE "
               f"{t['yade_particle_steps_per_s'] / 1e6:.2f} M particle-steps/s (speedup "
               f"{data['speedup_stepping']:.2f})")
     else:
         data["speedup_rve_call"] = data["speedup_stepping"] = None
+        data["speedup_rve_call_blocking"] = None
     data["timing"] = t
 
 
@@ -564,6 +604,7 @@ def main():
     entries of an existing JSON and keeps the other part's (each entry says when and
     at which revision it was measured)."""
     dims = [int(x) for x in C.env_list("DIMS", "2")]
+    seeds = [int(x) for x in C.env_list("SEEDS", "1 2 3")]
     axial = float(os.environ.get("AXIAL", "0.06"))
     rounds, calls = C.env_int("ROUNDS", 3), C.env_int("CALLS", 5)
     part = os.environ.get("PART", "all")
@@ -585,8 +626,8 @@ def main():
         data["reason"] = "YADE is not installed (no 'yade' executable on PATH)"
         print(data["reason"] + ": the peer is skipped")
     if part in ("all", "curves"):
-        data["settings"]["axial_strain"] = axial
-        curves(data, dims, axial, exe)
+        data["settings"].update(axial_strain=axial, seeds=seeds)
+        curves(data, dims, axial, exe, seeds)
         data["measured_curves"] = stamp
     if part in ("all", "timing"):
         data["settings"].update(rounds=rounds, calls=calls)

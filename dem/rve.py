@@ -46,7 +46,8 @@ from scipy.linalg import fractional_matrix_power
 from .boundary import PeriodicCell
 from .contact.laws import Law, law_from_spec
 from .rve_measure import measure_periodic
-from .simulation import Simulation, SimulationError, critical_time_step
+from .contact.model import ContactModel
+from .simulation import Simulation, SimulationError, critical_time_step, damped_stability
 from .state import Bodies
 
 log = logging.getLogger(__name__)
@@ -63,15 +64,20 @@ class RelaxationError(SimulationError):
 #: packing's own response time. Measured on the 400-disk call of
 #: benchmarks/rve_size_accuracy.py (docs/performance.md): 0.3 takes a third of the
 #: steps of 0.07 and is closer to the slow-loading limit; packings blow up from 0.5
-#: (docs/stability.md), so 0.3 keeps a margin of 1.5
+#: (docs/stability.md), so 0.3 keeps a margin of 1.5. Dashpots lower the limit, and
+#: the step with it (:func:`quasi_static_dt`)
 DT_FACTOR = 0.3
 
 
 def quasi_static_dt(bodies, model, dt=None):
-    """``dt`` [s], or by default ``DT_FACTOR`` x the critical step of the scene."""
+    """``dt`` [s], or by default ``DT_FACTOR`` x the critical step of the scene, times
+    :func:`~dem.simulation.damped_stability` of its most damped contact mode."""
     if dt is not None:
         return dt
-    return DT_FACTOR * critical_time_step(bodies, model)[0]
+    if not isinstance(model, ContactModel):
+        model = ContactModel(model)
+    dt_crit, m_min, _ = critical_time_step(bodies, model)
+    return DT_FACTOR * damped_stability(model.max_damping_ratio(bodies, m_min)) * dt_crit
 
 
 # --------------------------------------------------------------------------- packings

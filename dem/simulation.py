@@ -46,6 +46,27 @@ INNER_SKIN = 0.05
 PARALLEL_MIN_BODIES = 1000
 
 
+#: a close-packed assembly's highest frequency over the two-body one: 1 / the
+#: measured blow-up factor 0.5 (docs/stability.md). Its dashpots add up as its springs
+#: do, so its damping ratio is this multiple of the two-body one too
+PACKING_FREQUENCY_RATIO = 2.0
+
+
+def damped_stability(zeta):
+    """Fraction of the undamped stable step left to the stiffest mode of a close
+    packing whose contacts have damping ratio ``zeta``.
+
+    Explicit dashpots (velocity Verlet with the half-step velocity) are stable for
+    ``omega dt < 2 (sqrt(1 + z^2) - z)``; the packing's stiffest mode has ``z`` =
+    :data:`PACKING_FREQUENCY_RATIO` x ``zeta``. 1 without dashpots.
+
+    >>> round(damped_stability(0.0), 2), round(damped_stability(0.73), 2)
+    (1.0, 0.31)
+    """
+    z = PACKING_FREQUENCY_RATIO * zeta
+    return math.sqrt(1.0 + z * z) - z
+
+
 class SimulationError(RuntimeError):
     """A run stopped on a physical failure (non-finite state, excessive overlap)."""
 
@@ -85,7 +106,8 @@ class Simulation:
         Contact laws (a bare :class:`~dem.contact.laws.Law` acts on every pair).
     dt : float, optional
         Time step [s]; default ``DT_FACTOR * dt_crit``. A step above ``STABLE_FACTOR *
-        dt_crit`` (the measured limit of a close packing) is refused unless
+        dt_crit`` (the measured limit of a close packing), times
+        :func:`damped_stability` of the most damped contact mode, is refused unless
         ``allow_unstable_dt=True``.
     gravity : (d,) array_like, optional
         Gravitational acceleration [m/s^2].
@@ -136,12 +158,21 @@ class Simulation:
         dt = float(dt)
         if not (dt > 0.0 and math.isfinite(dt)):
             raise ValueError(f"dt must be positive and finite, got {dt}")
-        if dt > STABLE_FACTOR * self.dt_crit and not allow_unstable_dt:
+        #: largest damping ratio of the contact modes (dashpots lower the stable step)
+        self.damping_ratio = (model.max_damping_ratio(bodies, m_min)
+                              if math.isfinite(self.dt_crit) else 0.0)
+        #: the largest step accepted: STABLE_FACTOR x the damped two-body limit
+        self.dt_stable = STABLE_FACTOR * damped_stability(self.damping_ratio) * self.dt_crit
+        if dt > self.dt_stable and not allow_unstable_dt:
+            damped = (f", times {damped_stability(self.damping_ratio):.3g} for contact "
+                      f"damping ratio {self.damping_ratio:.3g}"
+                      if self.damping_ratio > 0.0 else "")
             raise ValueError(
                 f"dt = {dt:.4g} s exceeds the critical time step of a packing, "
-                f"{STABLE_FACTOR:g} x the two-body limit {self.dt_crit:.4g} s (lightest "
-                f"body {m_min:.4g} kg, stiffest contact {k_max:.4g} N/m; close-packed "
-                f"bodies blow up from 0.5 x); pass allow_unstable_dt=True to run anyway")
+                f"{STABLE_FACTOR:g} x the two-body limit {self.dt_crit:.4g} s{damped} "
+                f"(lightest body {m_min:.4g} kg, stiffest contact {k_max:.4g} N/m; "
+                f"close-packed bodies blow up from 0.5 x); pass allow_unstable_dt=True "
+                f"to run anyway")
         self.dt = dt
         g = np.zeros(self.dim) if gravity is None else np.asarray(gravity, dtype=np.float64)
         if g.shape != (self.dim,):

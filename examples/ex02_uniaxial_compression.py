@@ -56,6 +56,7 @@ from pathlib import Path
 import numpy as np
 
 import dem
+from dem.io.packing import hcp_layers
 
 SIZE = os.environ.get("EXAMPLES_SIZE", "small")
 
@@ -67,22 +68,6 @@ STRAIN_END = 0.04  # axial strain at the end of the run
 N_X, N_Y, N_Z = {"small": (8, 8, 6), "full": (25, 30, 22)}[SIZE]
 N_RECORDS = 60
 SPRINGS = dict(kn=20.0, kt=10.0, gamma_n=0.08, gamma_t=0.04)  # [N/m], [N s/m]
-
-
-def hcp_layers(nx, ny, nz, radius):
-    """Centres (nx ny nz, 3) [m] of touching spheres in HCP (ABAB) order.
-
-    Each layer is a hexagonal layer of ``ny`` rows of ``nx`` spheres along x (rows
-    ``sqrt(3) r`` apart, every other row shifted by ``r``); layers are ``2 sqrt(2/3) r``
-    apart and every other layer (B) sits over the hollows of the one below (A), shifted
-    by ``(r, r / sqrt(3))``. The lowest spheres along each axis touch its zero plane.
-    """
-    dx, dy, dz = 2.0 * radius, np.sqrt(3.0) * radius, 2.0 * np.sqrt(2.0 / 3.0) * radius
-    k, j, i = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
-    x = radius + i * dx + radius * ((j + k) % 2)
-    y = radius + j * dy + radius / np.sqrt(3.0) * (k % 2)
-    z = radius + k * dz
-    return np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
 
 
 def compress(bodies, lid, area, box=None):

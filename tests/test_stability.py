@@ -85,6 +85,39 @@ def test_dense_lattice_sets_the_refusal_threshold():
         sim.run(2000)
 
 
+def test_dashpots_lower_the_stable_step_as_predicted():
+    """Explicit dashpots are stable for omega dt < 2 (sqrt(1 + z^2) - z). The hexagonal
+    lattice's fastest mode has sqrt(3) times the two-body frequency and damping ratio,
+    so with two-body ratio zeta = 0.6 its limit falls from 0.577 to 0.233 dt_crit: at
+    0.9 x that the lattice rings down to round-off, at 1.1 x its fastest mode grows
+    until contacts open and keeps ringing at the size of the initial motion (the same
+    step without dashpots is stable), and the refusal threshold lies below it."""
+    bodies, box = hex_lattice()
+    zeta = 0.6
+    gamma_n = 2.0 * zeta * math.sqrt(KN * 0.5 * bodies.mass[0])
+    law = dem.LinearSpring(kn=KN, gamma_n=gamma_n)
+    probe = dem.Simulation(bodies.copy(), law, box=box)
+    assert probe.damping_ratio == pytest.approx(zeta, rel=1e-12)
+    z = math.sqrt(3.0) * zeta
+    limit = (math.sqrt(1.0 + z * z) - z) / math.sqrt(3.0)  # in dt_crit
+    assert probe.dt_stable < limit * probe.dt_crit
+
+    def run(factor, model):
+        b, bx = hex_lattice()
+        sim = dem.Simulation(b, model, box=bx, dt=factor * probe.dt_crit, threads=1,
+                             allow_unstable_dt=True)
+        sim.run(3000)
+        v = sim.bodies.vel - sim.bodies.vel.mean(axis=0)  # the lattice's own motion
+        return float(np.abs(v).max())
+
+    v0 = float(np.abs(bodies.vel - bodies.vel.mean(axis=0)).max())
+    assert run(0.9 * limit, law) < 1e-9 * v0  # rung down
+    assert run(1.1 * limit, law) > 0.1 * v0  # unstable: grows, bounded by opening
+    assert run(1.1 * limit, dem.LinearSpring(kn=KN)) < 10.0 * v0  # undamped: stable
+    with pytest.raises(ValueError, match="damping ratio 0.6"):
+        dem.Simulation(bodies.copy(), law, box=box, dt=1.01 * probe.dt_stable)
+
+
 # --------------------------------------------------------------------------- RVE
 def test_relaxation_that_cannot_finish_says_what_to_change():
     """Nine disks of a precompressed square lattice, jostled out of equilibrium:

@@ -178,6 +178,15 @@ class Law:
         """Largest normal stiffness [N/m] a contact of reference radius ``r_ref`` reaches."""
         raise NotImplementedError
 
+    def damping_ratio(self, m_eff, rot):
+        """Largest damping ratio [-] of a contact's normal and tangential modes.
+
+        ``m_eff`` [kg] is the pair's effective mass, ``rot`` the rotational coupling of
+        the tangential mode (``1 + m r^2 / I``): it scales that mode's stiffness and
+        dashpot alike, so its ratio by ``sqrt(rot)``.
+        """
+        raise NotImplementedError
+
     def spec(self):
         """The law as plain data: ``{"law": class name, **constructor arguments}``;
         :func:`law_from_spec` rebuilds it (files store laws this way, never as code)."""
@@ -249,6 +258,12 @@ class LinearSpring(Law):
     def critical_stiffness(self, r_ref):
         return max(self.kn, self.kt)
 
+    def damping_ratio(self, m_eff, rot):
+        zeta_n = self.zeta + self.gamma_n / (2.0 * math.sqrt(self.kn * m_eff))
+        zeta_t = (self.gamma_t * math.sqrt(rot) / (2.0 * math.sqrt(self.kt * m_eff))
+                  if self.kt > 0.0 else 0.0)
+        return max(zeta_n, zeta_t)
+
 
 def Elastic(kn, kt, mu):
     """The paper's elastic law (eqs 16-18): linear springs, shear history, Coulomb cap."""
@@ -308,3 +323,7 @@ class HertzMindlin(Law):
     def critical_stiffness(self, r_ref):
         a = math.sqrt(r_ref * self.overlap_ref * r_ref)
         return max(2.0 * self.e_star * a, 8.0 * self.g_star * a)
+
+    def damping_ratio(self, m_eff, rot):
+        # c sqrt(S m) over 2 sqrt(S m): the same ratio at every overlap
+        return -math.sqrt(5.0 / 6.0) * self.beta * math.sqrt(rot)

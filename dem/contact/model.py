@@ -88,14 +88,20 @@ class ContactModel:
             names = ", ".join(f"{k} materials ({a}, {b})" for k, a, b in missing)
             raise ValueError(f"no contact law for {names}")
 
+    def max_damping_ratio(self, bodies, m_min):
+        """Largest damping ratio [-] of any law's contact modes, for the lightest pair
+        (effective mass ``m_min / 2`` [kg]: the most damped)."""
+        rot = ROTATION_COUPLING[bodies.dim]
+        return max(law.damping_ratio(0.5 * m_min, rot) for bucket in ("pp", "pw")
+                   for law in self.laws[bucket].values())
+
     def max_stiffness(self, bodies):
         """Largest normal or rotation-coupled tangential stiffness [N/m] in the scene."""
         from ..shapes import Shape
 
         r = bodies.radius[bodies.kind != Shape.PLANE]
         r_ref = float(r.min()) if r.size else 1.0
-        # tangential spring acts on translation and rotation: 1 + m r^2 / I
-        rot = 3.5 if bodies.dim == 3 else 3.0
+        rot = ROTATION_COUPLING[bodies.dim]
         k = 0.0
         for bucket in ("pp", "pw"):
             for law in self.laws[bucket].values():
@@ -103,6 +109,11 @@ class ContactModel:
                 ks = law.stiffness(law_overlap(law, r_ref), r_ref, law.row())[1]
                 k = max(k, kn, rot * ks)
         return k
+
+
+#: a tangential spring acts on translation and rotation: its mode's stiffness counts
+#: ``1 + m r^2 / I`` times, 3.5 for a solid sphere, 3 for a disk
+ROTATION_COUPLING = {2: 3.0, 3: 3.5}
 
 
 def law_overlap(law, r_ref):

@@ -18,6 +18,30 @@ def radii(r, n, rng):
     return np.full(n, float(r))
 
 
+def hcp_layers(nx, ny, nz, radius):
+    """Centres (nx ny nz, 3) [m] of touching spheres in HCP (ABAB) order.
+
+    Each layer is a hexagonal layer of ``ny`` rows of ``nx`` spheres along x (rows
+    ``sqrt(3) r`` apart, every other row shifted by ``r``); layers are ``2 sqrt(2/3) r``
+    apart and every other layer (B) sits over the hollows of the one below (A), shifted
+    by ``(r, r / sqrt(3))``. The lowest spheres along each axis touch its zero plane.
+    With even ``ny`` and ``nz`` the layers tile a periodic cell of
+    ``(2 r nx, sqrt(3) r ny, 2 sqrt(2/3) r nz)``.
+
+    Examples
+    --------
+    >>> x = hcp_layers(2, 2, 2, 0.5)
+    >>> x.shape, bool(np.isclose(np.linalg.norm(x[4] - x[0]), 1.0))  # B over A: touching
+    ((8, 3), True)
+    """
+    dx, dy, dz = 2.0 * radius, np.sqrt(3.0) * radius, 2.0 * np.sqrt(2.0 / 3.0) * radius
+    k, j, i = np.meshgrid(np.arange(nz), np.arange(ny), np.arange(nx), indexing="ij")
+    x = radius + i * dx + radius * ((j + k) % 2)
+    y = radius + j * dy + radius / np.sqrt(3.0) * (k % 2)
+    z = radius + k * dz
+    return np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+
+
 def lattice_packing(lo, hi, r, spacing, count, rng):
     """Spheres on a simple cubic (square) lattice filling the box ``lo``..``hi`` [m].
 

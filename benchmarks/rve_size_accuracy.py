@@ -20,8 +20,11 @@ path (axial strain 0, 0.5 %, 1 %), a Gauss-point call -- a strain increment of
 the largest strain per time step ``max_step_strain`` from 1e-4 down to 2e-7 and the
 relaxation tolerance ``tol`` 1e-3 and 1e-4. The error is ``|sigma - sigma_ref| /
 |sigma_ref|`` (Frobenius), the reference the same call at 1e-7 and tol 1e-5; the
-time is the call's wall time (median of ``REPS``). It shows which knob sets the error:
-the loading rate, not the relaxation tolerance.
+time is the call's wall time (median of ``REPS``). The same calls at caps 1e-5 and
+1e-6 are repeated with the time step at 0.07 and 0.15 of the critical step (the RVE's
+default is 0.3; triangles). It shows which knob sets the error: the loading rate per
+unit of the packing's response time (cap over time step), not the relaxation
+tolerance.
 
 usage::
 
@@ -53,6 +56,9 @@ CALL_STRAIN = (3e-4, -1e-3)  # lateral, axial: a dilating biaxial increment
 CALL_STATES = (0.0, 0.005, 0.01)  # axial strains of the states the calls start from
 TOLS = (1e-3, 1e-4)
 REFERENCE = {"max_step_strain": 1e-7, "tol": 1e-5}
+#: time steps compared (fractions of the critical step; the RVE's default is 0.3)
+DT_FACTORS = (0.07, 0.15, 0.3)
+DT_CAPS = (1e-5, 1e-6)
 
 
 def _config(n, seed, axial):
@@ -112,8 +118,11 @@ def cap_run(reps):
         states.append(rve.snapshot())
     default = (rve.max_step_strain, rve.tol)
 
-    def call(snap, cap, tol):
+    dt_default = rve.sim.dt
+
+    def call(snap, cap, tol, dt=None):
         rve.restore(snap)
+        rve.sim.dt = dt_default if dt is None else dt
         rve.max_step_strain, rve.tol = cap, tol
         s0 = rve.sim.step
         t0 = time.perf_counter()
@@ -122,7 +131,7 @@ def cap_run(reps):
         return sig, time.perf_counter() - t0, rve.sim.step - s0
 
     caps = [float(x) for x in C.env_list("CAPS", "1e-4 1e-5 3e-6 1e-6 5e-7 2e-7")]
-    rows = []
+    rows, dt_rows = [], []
     for k, snap in enumerate(states):
         ref, t_ref, steps_ref = call(snap, REFERENCE["max_step_strain"], REFERENCE["tol"])
         for tol in TOLS:
@@ -140,8 +149,17 @@ def cap_run(reps):
         rows.append({"state": k, "axial_strain": CALL_STATES[k], "reference": True,
                      **REFERENCE, "time": t_ref, "steps": steps_ref,
                      "stress": ref.tolist()})
+        for factor in DT_FACTORS:  # the time step: same calls, default tolerance
+            for cap in DT_CAPS:
+                sig, t, steps = call(snap, cap, default[1], factor * rve.sim.dt_crit)
+                dt_rows.append({"state": k, "dt_factor": factor, "cap": cap, "time": t,
+                                "steps": steps,
+                                "error": float(np.linalg.norm(sig - ref)
+                                               / np.linalg.norm(ref))})
     rve.max_step_strain, rve.tol = default
-    return {"rows": rows}
+    rve.sim.dt = dt_default
+    return {"rows": rows, "dt_rows": dt_rows,
+            "dt_factor_default": dt_default / rve.sim.dt_crit}
 
 
 def summarize_sizes(runs):
@@ -170,6 +188,18 @@ def summarize_caps(rows):
                     "median_error": C.median([r["error"] for r in mine]),
                     "time": C.median([r["time"] for r in mine]),
                     "steps": C.median([r["steps"] for r in mine])})
+    return out
+
+
+def summarize_dt(rows):
+    """Per (dt factor, cap): the largest error over the states, the median steps."""
+    out = []
+    for factor, cap in sorted({(r["dt_factor"], r["cap"]) for r in rows}):
+        mine = [r for r in rows if r["dt_factor"] == factor and r["cap"] == cap]
+        out.append({"dt_factor": factor, "cap": cap,
+                    "max_error": max(r["error"] for r in mine),
+                    "steps": C.median([r["steps"] for r in mine]),
+                    "time": C.median([r["time"] for r in mine])})
     return out
 
 
@@ -208,6 +238,12 @@ def visualize(data):
         for c in mine:
             ax3.annotate(f"{c['cap']:.0e}", (c["time"], c["max_error"]), fontsize=7,
                          textcoords="offset points", xytext=(3, 3))
+    for c in data.get("dt_summary") or []:
+        if c["dt_factor"] == data.get("dt_factor_default"):
+            continue
+        ax3.plot(c["time"], c["max_error"], "b^", ms=5)
+        ax3.annotate(f"{c['cap']:.0e}, dt {c['dt_factor']:g}", (c["time"], c["max_error"]),
+                     fontsize=6, color="b", textcoords="offset points", xytext=(3, -8))
     if caps:
         ax3.set(xlabel="time per Gauss-point call [s]",
                 ylabel="stress error (max over 3 states)",
@@ -240,10 +276,16 @@ def main():
             raise RuntimeError("strain-cap worker failed: " + res["error"])
         data["cap_rows"] = res["rows"]
         data["cap_summary"] = summarize_caps(res["rows"])
+        data["dt_rows"] = res["dt_rows"]
+        data["dt_summary"] = summarize_dt(res["dt_rows"])
+        data["dt_factor_default"] = res["dt_factor_default"]
         data["measured_cap"] = stamp
         for c in data["cap_summary"]:
             print(f"cap {c['cap']:.0e} tol {c['tol']:.0e}: error {c['max_error']:.2e}, "
                   f"{1e3 * c['time']:.1f} ms ({c['steps']:.0f} steps)", flush=True)
+        for c in data["dt_summary"]:
+            print(f"dt {c['dt_factor']:.2f} dt_crit, cap {c['cap']:.0e}: error "
+                  f"{c['max_error']:.2e}, {c['steps']:.0f} steps", flush=True)
     if part in ("all", "size"):
         data["settings"].update(sizes=sizes, seeds=seeds, axial_strain=axial)
         tasks = [(n, s) for n in sorted(sizes, reverse=True) for s in range(seeds)]

@@ -57,27 +57,30 @@ class RelaxationError(SimulationError):
     """The RVE did not reach quasi-static equilibrium within its step cap."""
 
 
-#: default time step of an RVE as a fraction of the critical step. A quasi-static cell
-#: needs no resolved collisions (the engine's DT_FACTOR of 0.07 is set by binary
+#: default time step of an RVE as a fraction of the critical step, before the
+#: reductions for dashpots and local damping (:func:`quasi_static_dt`). A quasi-static
+#: cell needs no resolved collisions (the engine's DT_FACTOR of 0.07 is set by binary
 #: impacts); its relaxation takes a fixed physical time, so its steps shrink with a
 #: larger dt, and a strain cap per step is then a slower load in units of the
-#: packing's own response time. Measured on the 400-disk call of
-#: benchmarks/rve_size_accuracy.py (docs/performance.md): 0.3 takes a third of the
-#: steps of 0.07 and is closer to the slow-loading limit; packings blow up from 0.5
-#: (docs/stability.md), so 0.3 keeps a margin of 1.5. Dashpots lower the limit, and
-#: the step with it (:func:`quasi_static_dt`)
-DT_FACTOR = 0.3
+#: packing's own response time (benchmarks/rve_size_accuracy.py, docs/performance.md).
+#: The worst case is a close packing: hexagonal close packed spheres under the default
+#: local damping of 0.5 stop relaxing from 0.4 x dt_crit without dashpots and from 0.09
+#: x with the paper's viscoelastic ones (examples/ex05_box_vs_periodic.py,
+#: docs/stability.md); 0.25 x the reductions gives 0.20 and 0.064 there
+DT_FACTOR = 0.25
 
 
-def quasi_static_dt(bodies, model, dt=None):
+def quasi_static_dt(bodies, model, dt=None, damping=0.0):
     """``dt`` [s], or by default ``DT_FACTOR`` x the critical step of the scene, times
-    :func:`~dem.simulation.damped_stability` of its most damped contact mode."""
+    :func:`~dem.simulation.damped_stability` of its most damped contact mode and the
+    local damping ``damping``."""
     if dt is not None:
         return dt
     if not isinstance(model, ContactModel):
         model = ContactModel(model)
     dt_crit, m_min, _ = critical_time_step(bodies, model)
-    return DT_FACTOR * damped_stability(model.max_damping_ratio(bodies, m_min)) * dt_crit
+    zeta = model.max_damping_ratio(bodies, m_min)
+    return DT_FACTOR * damped_stability(zeta, damping) * dt_crit
 
 
 # --------------------------------------------------------------------------- packings
@@ -213,7 +216,8 @@ class RVE:
     damping : float
         Cundall local damping in [0, 1) (quasi-static runs: 0.2 to 0.7).
     dt : float, optional
-        Time step [s]; default :data:`DT_FACTOR` (0.3) x the critical step.
+        Time step [s]; default :data:`DT_FACTOR` (0.25) x the critical step, less for
+        dashpots and local damping (:func:`quasi_static_dt`).
     mass_scale : float
         Density scaling factor (>= 1 speeds quasi-static runs up by sqrt of it; the
         masses, the kinetic stress and the time step are those of the scaled
@@ -247,8 +251,8 @@ class RVE:
         check_settings(mass_scale, max_step_strain, tol, stress_tol, max_relax_steps,
                        check_every)
         scale_masses(bodies, mass_scale)
-        sim = Simulation(bodies, law, dt=quasi_static_dt(bodies, law, dt), damping=damping,
-                         box=cell, threads=threads)
+        sim = Simulation(bodies, law, dt=quasi_static_dt(bodies, law, dt, damping),
+                         damping=damping, box=cell, threads=threads)
         self._setup(sim, law, mass_scale, max_step_strain, tol, stress_tol,
                     max_relax_steps, check_every, np.eye(cell.dim))
 

@@ -132,7 +132,7 @@ check_every, threads
             walls[a, 0] = bodies.add_plane(lo, e)
             walls[a, 1] = bodies.add_plane(hi, -e)
         model = ContactModel(law, wall_law)
-        sim = Simulation(bodies, model, dt=quasi_static_dt(bodies, model, dt),
+        sim = Simulation(bodies, model, dt=quasi_static_dt(bodies, model, dt, damping),
                          damping=damping, threads=threads)
         self._setup(sim, law, wall_law, walls, hi - lo, mass_scale, max_step_strain, tol,
                     stress_tol, max_relax_steps, check_every)

@@ -177,7 +177,8 @@ if __name__ == "__main__":
           f"(lid {sigma_zz_lid[-1]:.4f}, floor {sigma_zz_floor[-1]:.4f})")
     print(f"sigma_xx = {sigma_xx[-1]:.4f}, sigma_yy = {sigma_yy[-1]:.4f} Pa "
           f"(walls {sigma_xx_walls[-1]:.4f}, {sigma_yy_walls[-1]:.4f}); periodic cell "
-          f"{bulk_stress[-1, 0, 0]:.4f}, {bulk_stress[-1, 1, 1]:.4f} Pa")
+          f"{bulk_stress[-1, 0, 0]:.4f}, {bulk_stress[-1, 1, 1]:.4f} Pa, sigma_zz "
+          f"{bulk_stress[-1, 2, 2]:.4f} Pa")
     out = (Path(__file__).resolve().parents[1] / "docs" / "figures"
            / "ex02_uniaxial_compression.png")
     out.parent.mkdir(parents=True, exist_ok=True)

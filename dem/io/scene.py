@@ -551,7 +551,8 @@ def build_simulation(scene):
         model = ContactModel(law)
         dt_crit, m_min, _ = critical_time_step(bodies, model)
         dt_max = STABLE_FACTOR * dt_crit * damped_stability(
-            model.max_damping_ratio(bodies, m_min) if math.isfinite(dt_crit) else 0.0)
+            model.max_damping_ratio(bodies, m_min) if math.isfinite(dt_crit) else 0.0,
+            s["damping"])
         if s["dt"] > dt_max:
             ctx.fail(f"dt = {_fmt(s['dt'])} s exceeds the critical time step "
                      f"{dt_max:.4g} s of a packing of these particles and [contact] law",

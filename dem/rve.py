@@ -268,6 +268,9 @@ class RVE:
         self.deformation = deformation
         #: steps of the last load or relaxation
         self.last_relax_steps = 0
+        #: every step loads and relaxations have run, probes included (a work counter:
+        #: :meth:`restore` does not reset it)
+        self.steps_run = 0
 
     #: a servo on a shear (or zero) stress is done within this fraction of the mean
     #: stress: a small packing's shear stress jumps by about that much when a
@@ -504,6 +507,7 @@ class RVE:
                     f"strain increment, raise damping or max_relax_steps")
             cell.lgrad[:] = lgrad
             sim.run(n_chunk, progress=False)
+            self.steps_run += n_chunk
             self.deformation = _expm_step(lgrad, dt, n_chunk) @ self.deformation
             cell.lgrad[:] = 0.0
             if done_load < n_load:

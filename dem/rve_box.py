@@ -150,6 +150,8 @@ check_every, threads
                        max_relax_steps, check_every)
         #: steps of the last load or relaxation
         self.last_relax_steps = 0
+        #: every step loads and relaxations have run (not reset by :meth:`restore`)
+        self.steps_run = 0
 
     # ------------------------------------------------------------------ state
     @property
@@ -416,6 +418,7 @@ check_every, threads
                         f"max_relax_steps")
                 self._set_wall_speeds(speed)
                 sim.run(n_chunk, progress=False)
+                self.steps_run += n_chunk
                 self._set_wall_speeds(np.zeros(d))
                 if done_load < n_load:
                     done_load += n_chunk

@@ -215,7 +215,7 @@ class DEMMicroModel(MicroModel):
         self.stress = rve.stress()
         self._trial_stress = self.stress
         self.cost = 0.0  # seconds of the last trial
-        self.steps = 0  # DEM steps of the last trial
+        self.steps = 0  # DEM steps of the last trial, tangent probes included
 
     def trial(self, deps):
         t0 = time.perf_counter()
@@ -223,10 +223,10 @@ class DEMMicroModel(MicroModel):
         if self._moved:
             rve.restore(self._committed)
         self._moved = True
-        step0 = rve.sim.step
+        work0 = rve.steps_run
         sig = rve.apply_strain(deps)
         c = rve.tangent(self.tangent_method, self.probe, direction=deps)
-        self.steps = rve.sim.step - step0
+        self.steps = rve.steps_run - work0  # perturbation probes included
         self._trial_stress = sig
         self.cost = time.perf_counter() - t0
         return sig, c

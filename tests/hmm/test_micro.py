@@ -62,6 +62,19 @@ def test_dem_trials_repeat_bit_for_bit_and_commit(packing):
     assert np.array_equal(m.stress, s1)
 
 
+def test_dem_steps_count_the_perturbation_probes(packing):
+    """A trial's DEM work counts its load and the tangent's probes (d (d + 1) / 2
+    relaxations), though each probe restores the state it started from."""
+    deps = np.diag([-2e-4, 0.0])
+    contact = DEMMicroModel(clone_rve(packing))
+    contact.trial(deps)
+    probed = DEMMicroModel(clone_rve(packing), tangent="perturbation")
+    probed.trial(deps)
+    assert contact.steps > 0
+    # the same load (bit-identical RVEs), then three probes of at least one step each
+    assert probed.steps >= contact.steps + 3
+
+
 def test_adaptive_point_runs_dem_only_outside_its_elastic_range(packing):
     m = Adaptive(DEMMicroModel(clone_rve(packing)), strain_threshold=1e-4,
                  ratio_threshold=0.3)

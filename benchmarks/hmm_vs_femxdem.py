@@ -120,9 +120,6 @@ MICRO = {"damping": RV.TEST["damping"], "tol": RV.TEST["tol"],
          "max_step_strain": RV.TEST["max_step_strain"],
          "max_relax_steps": RV.TEST["max_relax_steps"]}
 SOLVER = {"tol_residual": RTOL, "tol_displacement": RTOL, "max_iterations": 10}
-#: an unbalanced-force tolerance no state misses: our RVE call then ends after its
-#: loading steps, unrelaxed, as FEMxDEM's shear2D does (the diagnostic run)
-NO_RELAXATION = 1e12
 
 
 # --------------------------------------------------------------------------- our side
@@ -151,7 +148,7 @@ def problem(cells, steps, out_dir, relax=True):
     False: RVE calls without relaxation, FEMxDEM's algorithm)."""
     from hmm.problem import validate_problem
 
-    micro = dict(MICRO) if relax else dict(MICRO, tol=NO_RELAXATION)
+    micro = dict(MICRO, relax=bool(relax))  # false: the loading steps, unrelaxed
     return validate_problem({
         "mesh": {"dim": 2, "element": "quad8", "size": list(SIZE), "cells": list(cells)},
         "dirichlet": [

@@ -387,14 +387,16 @@ class RVE:
         return c
 
     # ------------------------------------------------------------------ loading
-    def apply_strain(self, deps):
+    def apply_strain(self, deps, relax=True):
         """Impose the displacement-gradient increment ``deps`` (d, d), then relax.
 
-        Returns the stress (d, d) [Pa] of the relaxed state.
+        Returns the stress (d, d) [Pa] of the relaxed state. ``relax=False`` stops
+        once the increment is imposed, as YADE's FEMxDEM calls its RVEs: the stress
+        is that of the state the loading steps leave, not in equilibrium.
         """
-        return self.load(deps)
+        return self.load(deps, relax=relax)
 
-    def load(self, deps=None, stress=None, mask=None, progress=None):
+    def load(self, deps=None, stress=None, mask=None, progress=None, relax=True):
         """Mixed control: strain increment on some components, stress on others.
 
         Parameters
@@ -410,6 +412,9 @@ class RVE:
             (a shear component is driven by a symmetric shear strain rate).
         progress : callable, optional
             ``progress(steps_done)`` after each check (for progress bars).
+        relax : bool
+            Relax after the increment (default); False ends the call once the
+            increment is imposed (strain control only: a servo needs relaxation).
 
         Returns the relaxed stress (d, d) [Pa].
         """
@@ -428,8 +433,11 @@ class RVE:
             raise ValueError(f"stress targets and mask must be finite ({d},) or "
                              f"({d}, {d}) arrays")
         mask = mask | mask.T
+        if not relax and mask.any():
+            raise ValueError("stress control needs relaxation: relax=False is for "
+                             "strain-controlled increments only")
         deps[mask] = 0.0
-        return self._drive(deps, target, mask, progress)
+        return self._drive(deps, target, mask, progress, relax)
 
     def consolidate(self, p0, friction=None, max_step_strain=1e-4, progress=None):
         """Isotropic consolidation to ``sigma = -p0 I`` [Pa] by the servo on every
@@ -457,7 +465,7 @@ class RVE:
         finally:
             self.max_step_strain = saved
 
-    def _drive(self, deps, target, mask, progress):
+    def _drive(self, deps, target, mask, progress, relax=True):
         sim, cell, d = self.sim, self.cell, self.dim
         dt = sim.dt
         n_load = math.ceil(np.abs(deps).max() / self.max_step_strain) if deps.any() else 0
@@ -494,7 +502,7 @@ class RVE:
             if done_load < n_load:
                 n_chunk = min(n_chunk, n_load - done_load)
                 lgrad += l_load
-            elif servo_ok and r["unbalanced"] < self.tol:
+            elif servo_ok and (r["unbalanced"] < self.tol or not relax):
                 break
             if sim.step - start - n_load >= self.max_relax_steps:
                 cell.lgrad[:] = 0.0

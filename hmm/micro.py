@@ -199,14 +199,17 @@ class DEMMicroModel(MicroModel):
     nothing has moved since, applies the strain increment under strain control,
     relaxes, and returns the Love-Weber stress and the tangent (``"contact"``: eq 29;
     ``"perturbation"``: relaxed probes, costlier and exact for the relaxed state).
+    ``relax=False`` skips the relaxation, YADE FEMxDEM's call (see
+    :meth:`dem.rve.RVE.apply_strain`).
     """
 
     ran_dem = True
 
-    def __init__(self, rve, tangent="contact", probe=1e-5):
+    def __init__(self, rve, tangent="contact", probe=1e-5, relax=True):
         if tangent not in ("contact", "perturbation"):
             raise ValueError(f"tangent must be 'contact' or 'perturbation', got {tangent!r}")
         self.rve = rve
+        self.relax = bool(relax)
         self.dim = rve.dim
         self.tangent_method = tangent
         self.probe = float(probe)
@@ -224,7 +227,7 @@ class DEMMicroModel(MicroModel):
             rve.restore(self._committed)
         self._moved = True
         work0 = rve.steps_run
-        sig = rve.apply_strain(deps)
+        sig = rve.apply_strain(deps, relax=self.relax)
         c = rve.tangent(self.tangent_method, self.probe, direction=deps)
         self.steps = rve.steps_run - work0  # perturbation probes included
         self._trial_stress = sig

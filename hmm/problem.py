@@ -167,6 +167,9 @@ SCHEMA = {
                                only=("dem", "adaptive"), doc="Largest strain per step."),
         "max_relax_steps": Key("int", default=200000, range=Range(1.0),
                                only=("dem", "adaptive"), doc="Step cap of a relaxation."),
+        "relax": Key("bool", default=True, only=("dem", "adaptive"),
+                     doc="Relax each RVE call to tol; false: stop once the strain "
+                         "increment is imposed (YADE FEMxDEM's call)."),
         "tangent": Key("str", default="contact", choices=("contact", "perturbation"),
                        only=("dem", "adaptive"), doc="Tangent operator of the RVEs."),
         "strain_threshold": Key("float", default=1e-4, range=POSITIVE, only=("adaptive",),
@@ -421,7 +424,8 @@ def model_factory(problem, dim, progress=None, points=None):
         return weak[i]
 
     def factory(g):
-        m = DEMMicroModel(clone_rve(packing_of(g)), tangent=mc["tangent"])
+        m = DEMMicroModel(clone_rve(packing_of(g)), tangent=mc["tangent"],
+                          relax=mc["relax"])
         if kind == "adaptive":
             m = Adaptive(m, mc["strain_threshold"], mc["ratio_threshold"])
         return m

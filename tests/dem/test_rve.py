@@ -148,6 +148,26 @@ def test_compiled_response_equals_the_contact_by_contact_sums(packing):
     packing.restore(snap)
 
 
+def test_unrelaxed_call_stops_once_the_increment_is_imposed(packing):
+    """relax=False (FEMxDEM's RVE call): exactly the loading steps, the cell at
+    I + deps, and a state out of equilibrium that relaxing would change."""
+    snap = packing.snapshot()
+    f0 = packing.deformation.copy()
+    deps = np.diag([-3e-4, 1e-4])
+    s_fast = packing.apply_strain(deps, relax=False)
+    assert packing.last_relax_steps == 30  # 3e-4 at 1e-5 per step
+    np.testing.assert_allclose(packing.deformation @ np.linalg.inv(f0),
+                               np.eye(2) + deps, rtol=0.0, atol=1e-12)
+    assert packing.response(tangent=False)["unbalanced"] > packing.tol
+    packing.restore(snap)
+    s_relaxed = packing.apply_strain(deps)
+    assert packing.last_relax_steps > 30
+    assert not np.allclose(s_fast, s_relaxed, rtol=1e-3)
+    packing.restore(snap)
+    with pytest.raises(ValueError, match="stress control needs relaxation"):
+        packing.load(deps, stress=[-1e5, 0.0], mask=[True, False], relax=False)
+
+
 def test_biaxial_step_keeps_the_lateral_stress(packing):
     snap = packing.snapshot()
     f0 = packing.deformation.copy()

@@ -51,7 +51,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/shape_throughput.py
 	$(BIN)/python benchmarks/rve_call.py
 	$(BIN)/python benchmarks/mpi_scaling.py
-	$(BIN)/python benchmarks/rve_vs_yade.py
+	DIMS="2 3" $(BIN)/python benchmarks/rve_vs_yade.py
+	$(BIN)/python benchmarks/rve_size_accuracy.py
 	$(BIN)/python benchmarks/hmm_vs_femxdem.py
 	$(BIN)/python benchmarks/hmm_tangent_adaptive.py
 	$(BIN)/python benchmarks/pd_lammps.py

@@ -84,7 +84,10 @@ usage::
 environment: SIZES ("2x4 4x8"), STEPS (3, load steps of ours), PEER_STEPS (STEPS;
 fewer keep a slow peer within the time budget: the ratios are per step and per
 call), PROCS ("1 2"), YADE (the YADE executable, default ``yade``; FEMxDEM runs
-under the Python of its launch script). Without YADE or Escript the peer is skipped,
+under the Python of its launch script); PUBLISHED ("8x16:100" runs ours alone on the
+published problem size, FEMxDEM's RVE call then relaxed (PUBLISHED_RUNS, "fixed
+relax"), on PUBLISHED_PROCS (2) processes, and adds it to the JSON). Without YADE or
+Escript the peer is skipped,
 saying so on stdout and in the JSON, and our side still runs.
 """
 
@@ -589,7 +592,46 @@ def _size(s):
     return nx, ny
 
 
+def published(spec, procs):
+    """Ours alone on the published problem size, ``spec`` = "NXxNY:STEPS" (FEMxDEM's
+    biaxial example: 8x16 elements, 512 Gauss points, 100 load steps), with
+    FEMxDEM's RVE call and with relaxation, on ``procs`` processes: the solve's wall
+    time, Newton evaluations, cuts and the mean stress curve."""
+    size, n_steps = spec.split(":")
+    rows = {}
+    for variant, _, relax in sorted(VARIANTS, key=lambda v: v[2]):  # unrelaxed first
+        kind = "relax" if relax else "fixed"
+        if kind not in C.env_list("PUBLISHED_RUNS", "fixed relax"):
+            continue
+        r = ours(_size(size), int(n_steps), procs, relax)
+        if not r.get("ok"):
+            rows[variant] = {"ok": False, "error": r["error"]}
+            print(f"{size} x {n_steps} steps, {variant}: {r['error']}", flush=True)
+            continue
+        rows[variant] = {k: r[k] for k in ("processes", "gauss_points", "steps", "cuts",
+                                           "evaluations_per_step", "solve_time",
+                                           "setup_time", "dem_steps_per_call",
+                                           "mean_stress")}
+        print(f"{size} x {n_steps} steps, {variant}, {procs} processes: solve "
+              f"{r['solve_time']:.0f} s, {sum(r['evaluations_per_step']) / len(r['evaluations_per_step']):.2f} "
+              f"evaluations per step, {r['cuts']} cuts", flush=True)
+    return {"mesh": size, "load_steps": int(n_steps), "processes": procs, "runs": rows}
+
+
 def main():
+    """``PUBLISHED="8x16:100"`` runs :func:`published` only (``PUBLISHED_PROCS``, 2)
+    and adds it to the JSON of an earlier comparison; otherwise the comparison."""
+    if os.environ.get("PUBLISHED"):
+        data = json.loads(OUT.read_text()) if OUT.exists() else {}
+        prep = C.run_worker(__file__, ["prepare"], threads=1)
+        if not prep.get("ok"):
+            raise RuntimeError("preparing the packing failed: " + prep["error"])
+        data["published"] = published(os.environ["PUBLISHED"],
+                                      C.env_int("PUBLISHED_PROCS", 2))
+        data["published"].update(date=C.now(), revision=C.git_revision(),
+                                 loadavg=C.loadavg())
+        C.write_json(OUT, data)
+        return
     sizes = C.env_list("SIZES", "2x4 4x8")
     steps = C.env_int("STEPS", 3)
     peer_steps = C.env_int("PEER_STEPS", steps)

@@ -36,7 +36,7 @@ DEMO = {
     "micro": {"model": "dem", "count": 60, "radius": [0.8e-3, 1.2e-3], "p0": 1e5,
               "kn": 1e8, "kt": 5e7, "mu": 0.5, "seed": 1, "packings": 1,
               "damping": 0.5, "tol": 1e-3},
-    "solver": {"tol_residual": 5e-3, "tol_displacement": 5e-3, "max_iterations": 10},
+    "solver": {"tol_residual": 1e-2, "tol_displacement": 5e-3, "max_iterations": 10},
     "output": {"dir": "output/demo"},
 }
 

@@ -322,6 +322,9 @@ class Simulation:
             elif not self.shaped:
                 self._index()
             self._call(0, True)
+            if self._status[0] == REBUILD:  # bodies moved past the skin since its build
+                self._rebuild()
+                self._call(0, True)
             self._check_status(None)
             self._primed = True
 

@@ -246,6 +246,25 @@ def test_contact_made_during_drift_is_not_missed():
     np.testing.assert_allclose(f[1:], law.kn * ov[1:], rtol=1e-12)
 
 
+def test_prime_with_a_list_gone_stale_rebuilds_it():
+    """A scene changed between runs (a law swapped, as RVE.set_friction does, marks it
+    unprimed) may have bodies past half the skin from the list's build: priming
+    rebuilds the list and finds the new contact instead of stopping."""
+    skin = 1e-3
+    pos = [[-R - skin, 0.0, 0.0], [R + skin, 0.0, 0.0]]
+    bodies = dem.Bodies.spheres(pos, radius=R, density=RHO)
+    law = dem.LinearSpring(kn=1e3)
+    sim = dem.Simulation(bodies, law, skin=skin)
+    sim.run(1)
+    builds = sim.neighbors.n_builds
+    bodies.pos[:, 0] *= (R - 0.1 * skin) / (R + skin)  # both moved 1.1 skin: touching
+    sim._primed = False
+    sim.prime()
+    assert sim.neighbors.n_builds == builds + 1
+    ov = 2 * R - (bodies.pos[1, 0] - bodies.pos[0, 0])
+    np.testing.assert_allclose(bodies.force[1, 0], law.kn * ov, rtol=1e-12)
+
+
 @pytest.mark.parametrize("name", ["linear", "hertz_mindlin"])
 def test_law_force_is_minus_energy_gradient(name):
     """Normal force = dU/d(overlap); tangential spring force = -dU/ds (no sliding)."""

@@ -47,7 +47,8 @@ from .boundary import PeriodicCell
 from .contact.laws import Law, law_from_spec
 from .rve_measure import measure_periodic
 from .contact.model import ContactModel
-from .simulation import Simulation, SimulationError, critical_time_step, damped_stability
+from .simulation import (Simulation, SimulationError, critical_time_step,
+                         damped_stability)
 from .state import Bodies
 
 log = logging.getLogger(__name__)

@@ -9,10 +9,11 @@ axial strain, in quasi-static increments of 0.2 %: each imposed at no more than 
 strain per step, then relaxed to an unbalanced-force ratio of 1e-3. Where ex02 moves a
 lid at a constant speed, here each increment is a Gauss-point call:
 
-* :class:`dem.rve_box.BoxRVE` -- the paper's box: six planar walls, smooth (no friction on
-  the walls, as in ex02), the lid and floor moved by the increment, the side walls held;
-* :class:`dem.rve.RVE` -- the same layers in a triply periodic cell, deformed by the same
-  increments: the bulk crystal, with no walls at all.
+* :class:`dem.rve_box.BoxRVE` -- the paper's box: six planar walls, smooth (no friction
+  on the walls, as in ex02), the lid and floor moved by the increment, the side walls
+  held;
+* :class:`dem.rve.RVE` -- the same layers in a triply periodic cell, deformed by the
+  same increments: the bulk crystal, with no walls at all.
 
 Claims checked by tests/test_examples.py:
 
@@ -121,7 +122,8 @@ def visualize():
             label=r"$-\sigma_{xx}$, box")
     ax.plot(100 * box_strain, -box_stress[:, 1, 1], "^-", color="C2", ms=4,
             label=r"$-\sigma_{yy}$, box")
-    ax.plot(100 * cell_strain, -cell_stress[:, 2, 2], "k--", label=r"$-\sigma_{zz}$, periodic")
+    ax.plot(100 * cell_strain, -cell_stress[:, 2, 2], "k--",
+            label=r"$-\sigma_{zz}$, periodic")
     ax.plot(100 * cell_strain, -cell_stress[:, 0, 0], "k:",
             label=r"$-\sigma_{xx} = -\sigma_{yy}$, periodic")
     ax.plot(100 * cell_strain, -affine_zz, color="0.6", lw=0.8,
@@ -140,7 +142,8 @@ def visualize():
 if __name__ == "__main__":
     print(f"{SIZE}: box {box.particles.size} spheres, periodic cell {cell.bodies.n}")
     print(f"at {100 * cell_strain[-1]:.1f} % axial strain: sigma_zz box "
-          f"{box_stress[-1, 2, 2]:.4f} Pa (Love-Weber {box_love[-1, 2, 2]:.4f}), periodic "
+          f"{box_stress[-1, 2, 2]:.4f} Pa (Love-Weber {box_love[-1, 2, 2]:.4f}), "
+          f"periodic "
           f"{cell_stress[-1, 2, 2]:.4f} (affine {affine_zz[-1]:.4f}), walls in series "
           f"{series_zz[-1]:.4f}; sigma_xx box "
           f"{box_stress[-1, 0, 0]:.4f}, sigma_yy box {box_stress[-1, 1, 1]:.4f}, "

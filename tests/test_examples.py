@@ -98,7 +98,7 @@ def test_ex02_bulk_is_transversely_isotropic(ex02):
         np.testing.assert_allclose(s[:, a, b], 0.0, atol=1e-9 * scale)
 
 
-# ------------------------------------------------------------------ ex05: box and periodic RVE
+# ------------------------------------------------------------------ ex05: box, periodic RVE
 @pytest.fixture(scope="module")
 def ex05():
     return run_example("ex05_box_vs_periodic")

@@ -31,7 +31,7 @@ def hcp_layers(nx, ny, nz, radius):
     Examples
     --------
     >>> x = hcp_layers(2, 2, 2, 0.5)
-    >>> x.shape, bool(np.isclose(np.linalg.norm(x[4] - x[0]), 1.0))  # B over A: touching
+    >>> x.shape, bool(np.isclose(np.linalg.norm(x[4] - x[0]), 1.0))  # B touches A
     ((8, 3), True)
     """
     dx, dy, dz = 2.0 * radius, np.sqrt(3.0) * radius, 2.0 * np.sqrt(2.0 / 3.0) * radius

@@ -530,7 +530,8 @@ def build_simulation(scene):
         The ``[output]`` section with the directory and HDF5 file resolved.
     """
     from ..contact.laws import HertzMindlin, LinearSpring
-    from ..simulation import STABLE_FACTOR, Simulation, critical_time_step, damped_stability
+    from ..simulation import (STABLE_FACTOR, Simulation, critical_time_step,
+                              damped_stability)
 
     ctx = _Context(scene.get("source", "<scene>"), Path("."))
     bodies = build_bodies(scene)

@@ -111,7 +111,8 @@ class Simulation:
     model : ContactModel or Law
         Contact laws (a bare :class:`~dem.contact.laws.Law` acts on every pair).
     dt : float, optional
-        Time step [s]; default ``DT_FACTOR * dt_crit``. A step above ``STABLE_FACTOR *
+        Time step [s]; default ``DT_FACTOR * dt_crit``, or half the largest step
+        accepted where heavy dashpots make that smaller. A step above ``STABLE_FACTOR *
         dt_crit`` (the measured limit of a close packing), times
         :func:`damped_stability` of the most damped contact mode and the local damping,
         is refused unless ``allow_unstable_dt=True``.
@@ -157,13 +158,6 @@ class Simulation:
         self.dim = bodies.dim
         model.check(bodies)
         self.dt_crit, m_min, k_max = critical_time_step(bodies, model)
-        if dt is None:
-            if not math.isfinite(self.dt_crit):
-                raise ValueError("dt must be given for a scene without free spheres")
-            dt = DT_FACTOR * self.dt_crit
-        dt = float(dt)
-        if not (dt > 0.0 and math.isfinite(dt)):
-            raise ValueError(f"dt must be positive and finite, got {dt}")
         if not 0.0 <= damping < 1.0:
             raise ValueError(f"damping must be in [0, 1), got {damping}")
         #: largest damping ratio of the contact modes (dashpots lower the stable step)
@@ -172,6 +166,14 @@ class Simulation:
         factor = damped_stability(self.damping_ratio, damping)
         #: the largest step accepted: STABLE_FACTOR x the damped two-body limit
         self.dt_stable = STABLE_FACTOR * factor * self.dt_crit
+        if dt is None:
+            if not math.isfinite(self.dt_crit):
+                raise ValueError("dt must be given for a scene without free spheres")
+            # heavy dashpots can put the accurate step past the stable one
+            dt = min(DT_FACTOR * self.dt_crit, 0.5 * self.dt_stable)
+        dt = float(dt)
+        if not (dt > 0.0 and math.isfinite(dt)):
+            raise ValueError(f"dt must be positive and finite, got {dt}")
         if dt > self.dt_stable and not allow_unstable_dt:
             damped = (f", times {factor:.3g} for contact damping ratio "
                       f"{self.damping_ratio:.3g} and local damping {damping:g}"

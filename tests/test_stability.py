@@ -116,6 +116,11 @@ def test_dashpots_lower_the_stable_step_as_predicted():
     assert run(1.1 * limit, dem.LinearSpring(kn=KN)) < 10.0 * v0  # undamped: stable
     with pytest.raises(ValueError, match="damping ratio 0.6"):
         dem.Simulation(bodies.copy(), law, box=box, dt=1.01 * probe.dt_stable)
+    # dashpots heavy enough to push the accurate default step past the stable one:
+    # the default falls to half the largest step accepted
+    heavy = dem.LinearSpring(kn=KN, gamma_n=10.0 * gamma_n)
+    sim = dem.Simulation(bodies.copy(), heavy, box=box)
+    assert sim.dt == 0.5 * sim.dt_stable < dem.DT_FACTOR * sim.dt_crit
 
 
 # --------------------------------------------------------------------------- RVE

@@ -134,8 +134,7 @@ def solve(prob):
     farm = CountingFarm(build_farm(prob, macro))
     st = prob["solver"]
     solver = Solver(macro, farm, supports, f_const, f_ramp,
-                    SolverSettings(st["tol_residual"], st["tol_displacement"],
-                                   st["max_iterations"], st["min_step"]))
+                    SolverSettings.from_section(st))
     farm.reset()
     top = macro.dofs("top", 1)
     n = prob["load"]["steps"]

@@ -12,10 +12,12 @@ to ``t + dt``, in this order:
 3. **Convergence** needs both ``|r_free| <= tol_residual * |f_int|`` and
    ``|dd| <= tol_displacement * |u + du|`` (the total displacement: a micro model
    that relaxes to a tolerance answers with noise that a cut step must not have to
-   beat); then ``farm.commit()`` and the step is
-   done. A step that has not converged in ``max_iterations``, whose residual grows
-   three times in a row, or in which a micro model's physics fails (an RVE that
-   cannot relax), is **cut**:
+   beat); with ``check_residual`` false the correction alone (YADE FEMxDEM's
+   criterion, for micro models whose noise keeps the residual above any useful
+   tolerance); then ``farm.commit()`` and the step is
+   done. A step that has not converged in ``max_iterations``, whose residual (or,
+   without the residual check, correction) grows three times in a row, or in which
+   a micro model's physics fails (an RVE that cannot relax), is **cut**:
    ``farm.rollback()`` and the step is retried at half its size, down to
    ``min_step`` times the nominal step, after which :class:`SolverError` stops the
    run; the solver keeps the last converged state (:func:`hmm.run.run_problem`
@@ -25,7 +27,7 @@ to ``t + dt``, in this order:
 
 import logging
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 from skfem import condense, solve
@@ -47,6 +49,12 @@ class SolverSettings:
     tol_displacement: float = 1e-3
     max_iterations: int = 10
     min_step: float = 1.0 / 64.0
+    check_residual: bool = True
+
+    @classmethod
+    def from_section(cls, section):
+        """The settings of a validated ``[solver]`` section (a dict)."""
+        return cls(**{f.name: section[f.name] for f in fields(cls)})
 
     def __post_init__(self):
         for name in ("tol_residual", "tol_displacement", "min_step"):
@@ -180,16 +188,20 @@ class Solver:
             un = max(float(np.linalg.norm(self.u + du)), self._u_floor)
             if on_iteration is not None:
                 on_iteration(it, rn / ref, dn / un)
-            if rn <= st.tol_residual * ref and dn <= st.tol_displacement * un:
+            small_r = rn <= st.tol_residual * ref or not st.check_residual
+            if small_r and dn <= st.tol_displacement * un:
                 self.u += du
                 self.t += h
                 self.sigma, self.tangent = sig, c
                 farm.commit()
                 return it
-            growth = growth + 1 if rn > last else 0
+            watched = rn if st.check_residual else dn
+            growth = growth + 1 if watched > last else 0
             if growth >= 3:
-                raise _NotConverged(f"residual grew three times (|r|/|f| = {rn / ref:.3g})")
-            last = rn
+                what = "residual" if st.check_residual else "correction"
+                raise _NotConverged(f"{what} grew three times (|r|/|f| = {rn / ref:.3g}, "
+                                    f"|du|/|u| = {dn / un:.3g})")
+            last = watched
             if prev is not None:  # Aitken relaxation of the corrections
                 diff = dd - prev
                 den = float(diff @ diff)

@@ -199,6 +199,9 @@ SCHEMA = {
                               doc="Newton iterations before a step is cut."),
         "min_step": Key("float", default=1.0 / 64.0, range=Range(0.0, 1.0, False, True),
                         doc="Smallest step, as a fraction of the nominal one."),
+        "check_residual": Key("bool", default=True,
+                              doc="Converge on residual and correction; false: on the "
+                                  "correction alone (YADE FEMxDEM's criterion)."),
     }),
     "output": Section(doc="Where results go.", keys={
         "dir": Key("str", doc="Output directory; default output/<file stem>."),

@@ -118,8 +118,7 @@ def _solve(problem, macro, farm, supports, f_const, f_ramp, out, progress, say, 
     say(f"micro models ready ({problem['micro']['model']}) in "
         f"{time.perf_counter() - t0:.1f} s")
     st = problem["solver"]
-    settings = SolverSettings(st["tol_residual"], st["tol_displacement"],
-                              st["max_iterations"], st["min_step"])
+    settings = SolverSettings.from_section(st)
     solver = Solver(macro, farm, supports, f_const, f_ramp, settings)
     n = problem["load"]["steps"]
     first = 1

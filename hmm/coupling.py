@@ -12,9 +12,9 @@ to ``t + dt``, in this order:
 3. **Convergence** needs both ``|r_free| <= tol_residual * |f_int|`` and
    ``|dd| <= tol_displacement * |u + du|`` (the total displacement: a micro model
    that relaxes to a tolerance answers with noise that a cut step must not have to
-   beat); with ``check_residual`` false the correction alone (YADE FEMxDEM's
-   criterion, for micro models whose noise keeps the residual above any useful
-   tolerance); then ``farm.commit()`` and the step is
+   beat); with ``check_residual`` false the correction alone, relative to the
+   step's displacement (YADE FEMxDEM's criterion, for micro models whose noise keeps
+   the residual above any useful tolerance); then ``farm.commit()`` and the step is
    done. A step that has not converged in ``max_iterations``, whose residual (or,
    without the residual check, correction) grows three times in a row, or in which
    a micro model's physics fails (an RVE that cannot relax), is **cut**:
@@ -185,7 +185,11 @@ class Solver:
                 raise _NotConverged("non-finite residual")
             dd = solve(*condense(macro.stiffness(c), -r, D=sup.dofs))
             dn = float(np.linalg.norm(dd))
-            un = max(float(np.linalg.norm(self.u + du)), self._u_floor)
+            # the correction against the total displacement; without the residual
+            # check against the step's own, FEMxDEM's (|du| of a late step is far
+            # below the total, which would let any correction pass)
+            ref_u = self.u + du if st.check_residual else du
+            un = max(float(np.linalg.norm(ref_u)), self._u_floor)
             if on_iteration is not None:
                 on_iteration(it, rn / ref, dn / un)
             small_r = rn <= st.tol_residual * ref or not st.check_residual

@@ -201,7 +201,8 @@ SCHEMA = {
                         doc="Smallest step, as a fraction of the nominal one."),
         "check_residual": Key("bool", default=True,
                               doc="Converge on residual and correction; false: on the "
-                                  "correction alone (YADE FEMxDEM's criterion)."),
+                                  "correction over the step's displacement alone "
+                                  "(YADE FEMxDEM's criterion)."),
     }),
     "output": Section(doc="Where results go.", keys={
         "dir": Key("str", doc="Output directory; default output/<file stem>."),

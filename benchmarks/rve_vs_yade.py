@@ -503,7 +503,7 @@ def visualize(data):
                          color=f"C{k}")
         label = {2: "400 disks, biaxial", 3: "1,000 spheres, triaxial"}[dim]
         title = label if not devs else (
-            f"{label}: max |Δq| up to the peak ≤ {100 * max(devs):.1f} % of peak q")
+            f"{label}: |Δq| to the peak ≤ {100 * max(devs):.1f} % of q_peak")
         ax1.set(xlabel="axial strain [%]", ylabel="q [kPa]", title=title)
         ax2.set(xlabel="axial strain [%]", ylabel="volumetric strain [%] (+ contraction)")
         ax2.axhline(0.0, color="0.6", lw=0.8)

@@ -66,8 +66,9 @@ class RelaxationError(SimulationError):
 #: packing's own response time (benchmarks/rve_size_accuracy.py, docs/performance.md).
 #: The worst case is a close packing: hexagonal close packed spheres under the default
 #: local damping of 0.5 stop relaxing from 0.4 x dt_crit without dashpots and from 0.09
-#: x with the paper's viscoelastic ones (examples/ex05_box_vs_periodic.py,
-#: docs/stability.md); 0.25 x the reductions gives 0.20 and 0.064 there
+#: x with the paper's viscoelastic ones (benchmarks/rve_step_limit.py, on the box of
+#: examples/ex05_box_vs_periodic.py; docs/stability.md); 0.25 x the reductions gives
+#: 0.20 and 0.063 there
 DT_FACTOR = 0.25
 
 

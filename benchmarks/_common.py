@@ -80,6 +80,17 @@ def emit_result(result):
     print("RESULT " + json.dumps(result), flush=True)
 
 
+def entry(main, worker):
+    """A benchmark script's ``__main__``: ``worker(args)`` when started by
+    :func:`run_worker` (``--worker args...``), else ``main()``; one numba thread
+    unless the environment says otherwise."""
+    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
+    if len(sys.argv) > 1 and sys.argv[1] == "--worker":
+        worker(sys.argv[2:])
+    else:
+        main()
+
+
 # --------------------------------------------------------------------------- the shared scene
 def scene_dir():
     """``(path, reason)``: the shared scene directory, or ``(None, why it is unusable)``."""

@@ -20,7 +20,6 @@ environment: SIZES ("small full": 8 x 8 x 6 and 16 x 16 x 12 spheres), FACTORS
 ("0.05 0.07 0.085 0.093 0.1 0.15 0.2 0.3 0.4"), CAP (20000).
 """
 
-import os
 import sys
 from pathlib import Path
 
@@ -116,8 +115,4 @@ def worker(args):
 
 
 if __name__ == "__main__":
-    os.environ.setdefault("NUMBA_NUM_THREADS", "1")
-    if len(sys.argv) > 1 and sys.argv[1] == "--worker":
-        worker(sys.argv[2:])
-    else:
-        main()
+    C.entry(main, worker)

@@ -28,7 +28,7 @@ from dem.contact.detection.analytic import (
     sphere_polytope,
     sphere_sphere,
 )
-from dem.contact.detection.polytope import polytope_contact, polytope_plane
+from dem.contact.detection.polytope import BLEND, polytope_contact, polytope_plane
 from dem.shapes.table import BOX, POLYGON, POLYHEDRON, ShapeTable
 
 SQ3 = np.sqrt(3.0)
@@ -216,6 +216,8 @@ def contact_ref(geo, sa, sb, dim, pos, rot):
     n2 = np.count_nonzero(np.max(vb @ fa[:, :dim].T - fa[:, dim], axis=1) <= t2 + tie)
     use1 = d1 > d2 + tie or (d1 >= d2 - tie and n1 >= n2)
     rule = ""
+    if dim == 2 and (depth_ref(va, fb).sum() > 0.0 or depth_ref(vb, fa).sum() > 0.0):
+        return corners_ref(va, fa, vb, fb)
     if (n1 if use1 else n2) == 0:
         if dim == 2:  # not a vertex in 2D: only for deep overlaps, kept as it is
             return (d1, -m1, x1 + 0.5 * d1 * m1, "2D") if use1 else (
@@ -236,6 +238,45 @@ def contact_ref(geo, sa, sb, dim, pos, rot):
     c = mean - ((mean - z) @ m) * m + 0.5 * ov * m
     n = -m1 if use1 else m2
     return ov, n, c, rule + ("vertex" if np.count_nonzero(w) == 1 else "vertices")
+
+
+def corners_ref(va, fa, vb, fb):
+    """2D, a corner inside: each body's corners inside the other give a depth (the
+    deepest's), a normal and a point (the depth-weighted means of the nearest faces'
+    normals and of the corners' projections onto them, moved in by half the depth);
+    with both, the gradient of the smooth maximum's energy, summed into one force on
+    its line of action."""
+    terms, inside = [], 0
+    for v, f, sign in ((va, fb, -1.0), (vb, fa, 1.0)):
+        w = depth_ref(v, f)
+        inside += np.count_nonzero(w)
+        if w.sum() > 0.0:
+            g, o = np.split(f[np.argmax(v @ f[:, :2].T - f[:, 2], axis=1)], [2], axis=1)
+            normal = w @ g / np.linalg.norm(w @ g)
+            point = w @ (v + w[:, None] * g - w.max() / 2 * g) / w.sum()
+            terms.append((w.max(), sign * normal, point))
+    rule = "vertex" if inside == 1 else "vertices"
+    if len(terms) == 1:
+        return *terms[0], rule
+    (d1, n1, p1), (d2, n2, p2) = terms
+    m, x = (d1 + d2) / 2, d1 - d2
+    h = BLEND * m
+    if abs(x) >= h:
+        return (*terms[0], rule) if x > 0 else (*terms[1], rule)
+    s = m + h / 4 + x**2 / (4 * h)  # the smooth maximum and its gradient
+    w1 = 0.5 + BLEND / 8 + x / (2 * h) - BLEND * x**2 / (8 * h**2)
+    w2 = 0.5 + BLEND / 8 - x / (2 * h) - BLEND * x**2 / (8 * h**2)
+    force = w1 * n1 + w2 * n2
+    def cross(u, v):
+        return u[0] * v[1] - u[1] * v[0]
+
+    moment = w1 * cross(p1, n1) + w2 * cross(p2, n2)
+    c = (w1 * p1 + w2 * p2) / (w1 + w2)
+    # the point of the line of action {p : p x force = moment} nearest c
+    t = np.array([-force[1], force[0]]) / np.linalg.norm(force)
+    lam = (moment - cross(c, force)) / cross(t, force)
+    return (s * np.linalg.norm(force), force / np.linalg.norm(force), c + lam * t,
+            "blend-" + rule)
 
 
 def depths_ref(geo, sa, sb, dim, pos, rot):
@@ -328,8 +369,10 @@ def test_cube_corner_into_face():
 
 @pytest.mark.parametrize("dim", [2, 3])
 def test_face_on_face_offset(dim):
-    """A's bottom overhangs B's top face: the point is the mean of A's corners inside B
-    (x = -0.1), not moved by B's corner inside A (2D, x = 0.5)."""
+    """A's bottom overhangs B's top face. 2D: A's corner inside B (x = -0.1) and B's
+    inside A (x = 0.5) are equally deep, and the point is their mean, the overlap's
+    centre. 3D: no corner of B is inside A; the point is the mean of A's corners inside
+    B (x = -0.1)."""
     h = [0.4, 0.3, 0.5][:dim]
     geo = table([box_rows(h), box_rows([0.5] * dim)])
     delta = 0.01
@@ -339,9 +382,14 @@ def test_face_on_face_offset(dim):
         pos[0, 1] = 0.1
     rot = np.zeros((2, 1)) if dim == 2 else np.tile([1.0, 0.0, 0.0, 0.0], (2, 1))
     ov, n, c = contact(dim, 0, 1, pos, rot, geo)
-    assert ov == pytest.approx(delta, abs=1e-14)
+    # 2D: a tie of the smooth maximum, S = (1 + BLEND / 4) delta, times its gradient's
+    # length, 1 + BLEND / 4 (module notes)
+    assert ov == pytest.approx(delta * (1 + BLEND / 4) ** 2 if dim == 2 else delta,
+                               abs=1e-14)
     np.testing.assert_allclose(n, -np.eye(dim)[-1], atol=1e-14)
     expect = np.array([-0.1, 0.1, 0.5 - delta / 2])  # corners x = -0.1 (y = -0.2, 0.4)
+    if dim == 2:
+        expect[0] = 0.2
     np.testing.assert_allclose(c, expect[[0, 2]] if dim == 2 else expect, atol=1e-14)
 
 
@@ -448,6 +496,31 @@ def test_tilted_box_on_box_point_moves_continuously(dim):
     points = np.array(points)
     np.testing.assert_allclose(points[200, :-1], pos[0, :-1], atol=1e-14)  # flat
     assert np.linalg.norm(np.diff(points, axis=0), axis=1).max() < 0.02 * hx
+
+
+def test_staggered_squares_point_moves_continuously():
+    """2D: a square on a square, staggered, turned through parallel. Each has one corner
+    inside the other; the deeper one carries the point (the energy's gradient) until
+    their depths are within BLEND of each other, and across that band (the smooth
+    maximum) the point slides from one corner to the other, through the overlap's
+    centre when the faces are parallel. Jumping from corner to corner is what made
+    staggered polygons rock and never settle."""
+    h, delta = 0.01, 2e-4
+    geo = table([box_rows([h, h]), box_rows([h, h])])
+    pos = np.array([[0.006, 3 * h - delta], [0.0, h]])
+    xs = []
+    for a in np.linspace(-0.02, 0.02, 801):
+        ov, n, c = contact(2, 0, 1, pos, np.array([[a], [0.0]]), geo)
+        ov_ref, n_ref, c_ref, _ = contact_ref(geo, 0, 1, 2, pos, np.array([[a], [0.0]]))
+        assert ov == pytest.approx(ov_ref, abs=1e-15)
+        np.testing.assert_allclose(c, c_ref, atol=1e-15)
+        xs.append(c[0])
+        if a == 0.0:  # the overlap spans x = -0.004 (A's corner) .. 0.01 (B's)
+            assert c == pytest.approx([0.003, 2 * h - delta / 2], abs=1e-15)
+    xs = np.array(xs)
+    corner_a = pos[0, 0] - h * np.cos(0.02) + h * np.sin(0.02)  # A's lower left
+    assert xs[0] == pytest.approx(h, abs=1e-5) and xs[-1] == pytest.approx(corner_a)
+    assert np.abs(np.diff(xs)).max() < 0.01 * (xs[0] - xs[-1])
 
 
 def moved_overlap(geo, sa, sb, pos, rot, dx, dtheta):

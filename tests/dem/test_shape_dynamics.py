@@ -179,6 +179,51 @@ def test_box_rests_on_wall_and_carries_its_weight():
     assert abs(quat_to_matrix(b.rot[box[0]])[2, 2]) == pytest.approx(1.0, abs=1e-4)
 
 
+def test_staggered_square_settles_on_a_square():
+    """A square dropped onto a fixed one with 0.6 of a side of overlap, under gravity
+    with local damping: it comes to rest (velocities at round-off), carried by one
+    contact whose force is its weight. Before the two corners' points were blended it
+    rocked between them for ever, at 0.1 rad/s."""
+    h = 0.01
+    b = dem.Bodies.empty(2)
+    b.fix(b.add_shapes(Box([h, h]), [[0.0, h]], RHO))
+    top = b.add_shapes(Box([h, h]), [[0.6 * h, 3 * h + 1e-5]], RHO)
+    law = dem.LinearSpring(kn=1e5, kt=5e4, mu=0.5, restitution=0.3)
+    sim = dem.Simulation(b, law, gravity=[0.0, -9.81], damping=0.3, threads=1)
+    sim.run(20000)
+    assert np.abs(b.vel[top]).max() < 1e-12
+    assert np.abs(b.ang_vel[top]).max() < 1e-10
+    c = sim.contacts()
+    assert len(c["i"]) == 1
+    np.testing.assert_allclose(np.abs(c["force"][0]), [0.0, b.mass[top[0]] * 9.81],
+                               atol=1e-9 * b.mass[top[0]] * 9.81)
+
+
+def test_polygon_pile_comes_to_rest():
+    """30 regular polygons (4 to 7 sides) dropped into a box settle to rest: velocities
+    fall by eight orders of magnitude and the floor carries their weight. Faces resting
+    on faces, corners in corners: where the point or the normal jumps between two
+    corners as a body rocks, a pile keeps rattling at 1e-3 m/s for ever."""
+    rng = np.random.default_rng(3)
+    b = dem.Bodies.empty(2)
+    r, side = 0.01, 10
+    for k in range(30):
+        shape = ConvexPolygon.regular(int(rng.integers(4, 8)), r * rng.uniform(0.7, 1.0))
+        b.add_shapes(shape, [[(k % side + 0.5) * 2.2 * r, (k // side + 0.5) * 2.2 * r]],
+                     RHO, rot=[rng.uniform(0, np.pi)])
+    floor = b.add_plane([0.0, 0.0], [0.0, 1.0])
+    b.add_plane([0.0, 0.0], [1.0, 0.0])
+    b.add_plane([side * 2.2 * r, 0.0], [-1.0, 0.0])
+    law = dem.LinearSpring(kn=1e5, kt=5e4, mu=0.5, restitution=0.3)
+    sim = dem.Simulation(b, law, gravity=[0.0, -9.81], damping=0.5, threads=1)
+    sim.run(30000)
+    assert len(sim.contacts()["i"]) > 35
+    assert np.abs(b.vel).max() < 1e-8
+    assert np.abs(b.ang_vel).max() < 1e-6
+    weight = b.mass[~b.is_fixed].sum() * 9.81
+    assert sim.wall_forces()[floor][1] == pytest.approx(-weight, rel=1e-6)
+
+
 def test_growing_box_follows_its_scale():
     b = dem.Bodies.empty(2)
     ids = b.add_shapes(Box([0.05, 0.02]), [[0.0, 0.0]], RHO)

@@ -44,23 +44,46 @@ scale):
 * the normal is the normalised sum of the outward normals of the faces attaining the
   max at the point (the subgradient of the SDF where two faces are equally deep);
 * when ``d1`` and ``d2`` tie (a face on a face), the problem with more optimal vertices
-  is used, then P1.
+  is used, then P1 (3D; in 2D see the corners below).
 
-Contact point of a vertex on a face
------------------------------------
+Corners inside (2D)
+-------------------
+In 2D the answer is read from the corners that lie inside the other body (every
+overlap of shallow depth has one). Each body's corners inside the other give one term:
+
+* its depth ``d``, the deepest corner's (continuous as the deepest changes);
+* its normal, the depth-weighted mean of the normals of the faces those corners lie
+  nearest to, and its point, the depth-weighted mean of their projections onto those
+  faces moved in by ``d / 2``. Both move continuously as a corner comes in (its weight
+  starts at zero) and as two corners trade places as the deepest (a face tilting
+  through flat on a face). One corner inside: that corner's depth, its face's normal,
+  and the point where the force is the gradient of the elastic energy ``k d^2 / 2``.
+
+With corners of both bodies inside (two staggered faces on each other, or two corners
+that have passed each other), the overlap is the smooth maximum ``S`` of the two depths
+(:func:`smooth_max`: the maximum, blended quadratically where they are within ``BLEND``
+of their mean), and the force is the gradient of ``k S^2 / 2``: the two terms' forces,
+weighted by ``dS/dd``, summed into one on its line of action (in the plane a force pair
+always has one). The reported overlap is ``S`` times the length of that sum, so a linear
+spring gives exactly that force; at a tie of two parallel faces it is ``(1 + BLEND /
+4)^2 = 1.13`` times the depth. Picking the deeper term outright instead makes the point,
+the normal and the torque jump by a whole face as a body rocks through the tie, and a
+pile of polygons then never comes to rest (it rattles at 1e-3 m/s; see
+``tests/dem/test_shape_dynamics.py::test_polygon_pile_comes_to_rest``).
+
+Without any corner inside (two long bodies crossing deeply), the deeper of P1 and P2
+gives the overlap, the normal and the point.
+
+Contact point of a vertex on a face (3D)
+----------------------------------------
 When the deeper optimum is a vertex, the point lies ``ov / 2`` in front of the mean of
 the searched body's vertices that lie inside the other, each weighted by its depth
 there (``-phi``, free from the programme's first scan), moved along the normal to the
 deepest vertex's level. One vertex inside: that vertex, the contract's point. Several (a
 face or an edge lying nearly flat on a face): the point, and so the torque, moves
-continuously as the face tilts (a weight vanishes as its vertex comes in through any
-face), where jumping between tied corners, or to the other end when a tilt flips which
-is deepest, would make a box resting on another chatter; the force is then a
-distributed support, not the gradient of a potential (as in :func:`polytope_plane`).
-Only the deeper side's vertices count: weighing the other body's corners as well
-(inside it at the same time, as when two corners have passed each other) would move the
-point off the deepest vertex for most of such a contact, and an undamped collision of
-two pentagons then loses a tenth of its energy.
+continuously as the face tilts. Only the deeper side's vertices count, so two staggered
+faces turning through parallel still move the point from one side's corners to the
+other's at once (in 2D the smooth maximum above removes that jump).
 
 Edge across edge (3D)
 ---------------------
@@ -73,8 +96,8 @@ both programmes' final bases (:func:`_crease_rows`): the limit of P1/P2 there, a
 conservative. When a face wins, the point is placed as for a vertex on a face.
 
 Limitations: the point of a face-on-face contact is a weighted mean of vertices, not
-the centroid of the overlap region. Shapes must be convex with outward unit face
-normals, as the shape table stores them.
+the centroid of the overlap region; in 3D the deeper side's corners alone decide it.
+Shapes must be convex with outward unit face normals, as the shape table stores them.
 """
 
 import math
@@ -88,6 +111,8 @@ TIE = 1e-12
 #: a pivot row must cross the edge direction by more than this (relative to |d|)
 _CROSS = 1e-12
 _MAX_PIVOTS = 100
+#: width of the blend of the two bodies' corners, relative to the deeper's depth
+BLEND = 0.5
 
 
 @kernel(inline=True)
@@ -151,11 +176,11 @@ def _row2(k, nfo, fo0, fi0, faces, sco, sci, c, s, px, py):
 def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol):
     """Minimise the outer polygon's face function over the inner polygon (outer frame).
 
-    Returns ``(t, x, y, nx, ny, count, pivots, sw, swx, swy)``: the optimum, its point
+    Returns ``(t, x, y, nx, ny, count, pivots, sw, swx, swy, sgx, sgy, dv)``: the optimum, its point
     (the average of the optimal inner vertices when several are), the normalised sum of
     the outer normals attaining the max there, how many inner vertices are optimal (0:
-    the optimum is not a vertex), and the sums of ``w`` and ``w x`` over the inner
-    vertices inside, ``w`` a vertex's depth (for the contact point).
+    the optimum is not a vertex), the sums above over the inner vertices inside, and
+    the deepest vertex's depth ``dv`` (for the contact point).
     """
     fo0, nfo = fstart[so], fstart[so + 1] - fstart[so]
     fi0, nfi = fstart[si], fstart[si + 1] - fstart[si]
@@ -164,7 +189,9 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
     # the two least values over all vertices (for the ties below)
     fmin, vb, fb = math.inf, 0, 0
     lo1, lo2 = math.inf, math.inf
-    sw, swx, swy = 0.0, 0.0, 0.0  # the inner vertices inside, weighted by their depth
+    # the inner vertices inside, weighted by their depth w: sums of w, of w times their
+    # projection onto the outer face nearest, and of w times that face's normal
+    sw, swx, swy, sgx, sgy = 0.0, 0.0, 0.0, 0.0, 0.0
     for v in range(nvi):
         lx, ly = sci * verts[vi0 + v, 0], sci * verts[vi0 + v, 1]
         wx, wy = c * lx - s * ly + px, s * lx + c * ly + py
@@ -174,9 +201,12 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
             if val > fv:
                 fv, fa = val, k
         if fv < 0.0:
+            gx, gy = faces[fo0 + fa, 0], faces[fo0 + fa, 1]
             sw -= fv
-            swx -= fv * wx
-            swy -= fv * wy
+            swx -= fv * (wx - fv * gx)
+            swy -= fv * (wy - fv * gy)
+            sgx -= fv * gx
+            sgy -= fv * gy
         if fv < lo2:
             lo1, lo2 = min(fv, lo1), max(fv, lo1)
         e = v - 1 if v > 0 else nfi - 1  # the edges into and out of vertex v
@@ -296,7 +326,7 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
             if val > best:
                 best, nx, ny = val, faces[f, 0], faces[f, 1]
         norm = 1.0
-    return zt, zx, zy, nx / norm, ny / norm, count, it, sw, swx, swy
+    return zt, zx, zy, nx / norm, ny / norm, count, it, sw, swx, swy, sgx, sgy, -lo1
 
 
 @kernel
@@ -315,36 +345,97 @@ def _polytope2(sa, a, sb, b, sx, sy, pos, rot, geo):
               _separation2(sa, sca, sb, scb, c, -s, qx, qy, vstart, verts, fstart, faces))
     if sep > 0.0:
         return -sep, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0
-    t1, x1, y1, m1x, m1y, n1, i1, s1, s1x, s1y = _deepest2(
+    t1, x1, y1, m1x, m1y, n1, i1, s1, s1x, s1y, g1x, g1y, v1 = _deepest2(
         sb, scb, sa, sca, c, s, px, py, vstart, verts, fstart, faces, tol)
     if t1 >= 0.0:
         return -t1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, i1
-    t2, x2, y2, m2x, m2y, n2, i2, s2, s2x, s2y = _deepest2(
+    t2, x2, y2, m2x, m2y, n2, i2, s2, s2x, s2y, g2x, g2y, v2 = _deepest2(
         sa, sca, sb, scb, c, -s, qx, qy, vstart, verts, fstart, faces, tol)
-    d1, d2 = -t1, -t2
-    use1 = d1 > d2 + tol or (d1 >= d2 - tol and n1 >= n2)
-    if use1:
-        ov, cnt, h = d1, n1, -0.5 * d1
+    if s1 > 0.0 or s2 > 0.0:  # a vertex inside: the corners' smooth maximum
+        return _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x, s1y, g1x, g1y,
+                         v1, s2, s2x, s2y, g2x, g2y, v2, i1 + i2)
+    d1, d2 = -t1, -t2  # edges across edges, no vertex inside: the deeper programme
+    if d1 > d2 + tol or (d1 >= d2 - tol and n1 >= n2):
         nx, ny = -(cb * m1x - snb * m1y), -(snb * m1x + cb * m1y)  # -(B's normal)
-        wx = cb * x1 - snb * y1 + pos[b, 0] + sx
-        wy = snb * x1 + cb * y1 + pos[b, 1] + sy
-    else:
-        ov, cnt, h = d2, n2, 0.5 * d2
-        nx, ny = ca * m2x - sna * m2y, sna * m2x + ca * m2y  # A's normal
-        wx = ca * x2 - sna * y2 + pos[a, 0]
-        wy = sna * x2 + ca * y2 + pos[a, 1]
-    # a vertex on a face: the point moves to the depth-weighted mean of the searched
-    # body's vertices inside the other, at the deepest point's level along n
-    if cnt > 0:
-        if use1:
-            ex = (cb * s1x - snb * s1y) / s1 + pos[b, 0] + sx - wx
-            ey = (snb * s1x + cb * s1y) / s1 + pos[b, 1] + sy - wy
-        else:
-            ex = (ca * s2x - sna * s2y) / s2 + pos[a, 0] - wx
-            ey = (sna * s2x + ca * s2y) / s2 + pos[a, 1] - wy
-        e = ex * nx + ey * ny
-        wx, wy = wx + ex - e * nx, wy + ey - e * ny
-    return ov, nx, ny, 0.0, wx + h * nx, wy + h * ny, 0.0, i1 + i2
+        wx = cb * x1 - snb * y1 + pos[b, 0] + sx - 0.5 * d1 * nx
+        wy = snb * x1 + cb * y1 + pos[b, 1] + sy - 0.5 * d1 * ny
+        return d1, nx, ny, 0.0, wx, wy, 0.0, i1 + i2
+    nx, ny = ca * m2x - sna * m2y, sna * m2x + ca * m2y  # A's normal
+    wx = ca * x2 - sna * y2 + pos[a, 0] + 0.5 * d2 * nx
+    wy = sna * x2 + ca * y2 + pos[a, 1] + 0.5 * d2 * ny
+    return d2, nx, ny, 0.0, wx, wy, 0.0, i1 + i2
+
+
+@kernel(inline=True)
+def _corner_term2(sw, swx, swy, sgx, sgy, depth, co, so, ox, oy):
+    """One body's corners in the other (the outer, frame ``co, so`` at ``o``): the
+    point and the outer body's outward normal (world).
+
+    The normal is the depth-weighted mean of the normals of the faces the corners lie
+    nearest to; the point the depth-weighted mean of their projections onto those
+    faces, moved in by half the deepest corner's depth. Both move continuously as
+    corners come in and as the deepest changes."""
+    norm = math.sqrt(sgx * sgx + sgy * sgy)
+    mx, my = (swx - 0.5 * depth * sgx) / sw, (swy - 0.5 * depth * sgy) / sw
+    gx, gy = sgx / norm, sgy / norm
+    return co * mx - so * my + ox, so * mx + co * my + oy, co * gx - so * gy, so * gx + co * gy
+
+
+@kernel
+def _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x, s1y, g1x, g1y, v1,
+              s2, s2x, s2y, g2x, g2y, v2, pivots):
+    """The contact from the corners inside: A's in B (depth ``v1``, sums in B's frame)
+    and B's in A. One side only: its term. Both: the gradient of the elastic energy of
+    the smooth maximum ``S`` of the two depths, as one force."""
+    p1x, p1y, n1x, n1y, p2x, p2y, n2x, n2y = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    if s1 > 0.0:
+        p1x, p1y, n1x, n1y = _corner_term2(s1, s1x, s1y, g1x, g1y, v1, cb, snb,
+                                           pos[b, 0] + sx, pos[b, 1] + sy)
+        n1x, n1y = -n1x, -n1y  # from A into B
+    if s2 > 0.0:
+        p2x, p2y, n2x, n2y = _corner_term2(s2, s2x, s2y, g2x, g2y, v2, ca, sna,
+                                           pos[a, 0], pos[a, 1])
+    if s2 <= 0.0:
+        return v1, n1x, n1y, 0.0, p1x, p1y, 0.0, pivots
+    if s1 <= 0.0:
+        return v2, n2x, n2y, 0.0, p2x, p2y, 0.0, pivots
+    ov, w1, w2 = smooth_max(v1, v2)
+    if w2 == 0.0:
+        return v1, n1x, n1y, 0.0, p1x, p1y, 0.0, pivots
+    if w1 == 0.0:
+        return v2, n2x, n2y, 0.0, p2x, p2y, 0.0, pivots
+    # forces w1 n1 at p1 and w2 n2 at p2 (times k S): their resultant, on its line of
+    # action through the point nearest their weighted mean
+    nx, ny = w1 * n1x + w2 * n2x, w1 * n1y + w2 * n2y
+    norm = math.sqrt(nx * nx + ny * ny)
+    wt = w1 + w2
+    cx, cy = (w1 * p1x + w2 * p2x) / wt, (w1 * p1y + w2 * p2y) / wt
+    torque = (w1 * ((p1x - cx) * n1y - (p1y - cy) * n1x)
+              + w2 * ((p2x - cx) * n2y - (p2y - cy) * n2x))
+    nx, ny = nx / norm, ny / norm
+    lam = -torque / norm
+    return ov * norm, nx, ny, 0.0, cx - lam * ny, cy + lam * nx, 0.0, pivots
+
+
+@kernel(inline=True)
+def smooth_max(d1, d2):
+    """``(S, dS/dd1, dS/dd2)``: a C1 maximum of two depths.
+
+    ``S = max`` where ``|d1 - d2| >= h``, ``h = BLEND (d1 + d2) / 2``; within, the
+    quadratic blend ``m + h / 4 + (d1 - d2)^2 / (4 h)`` (``m`` the mean), at most
+    ``BLEND / 8`` of the depth above the maximum (at a tie). Homogeneous of degree
+    one, so it is a function of the depths alone and its gradient a force field.
+    """
+    m = 0.5 * (d1 + d2)
+    h = BLEND * m
+    x = d1 - d2
+    if h <= 0.0 or x >= h:
+        return d1, 1.0, 0.0
+    if -x >= h:
+        return d2, 0.0, 1.0
+    q = BLEND * x * x / (8.0 * h * h)
+    return (m + 0.25 * h + x * x / (4.0 * h), 0.5 + BLEND / 8.0 + x / (2.0 * h) - q,
+            0.5 + BLEND / 8.0 - x / (2.0 * h) - q)
 
 
 # --------------------------------------------------------------------------- 3D

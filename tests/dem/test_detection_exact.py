@@ -28,7 +28,7 @@ from dem.contact.detection.analytic import (
     sphere_polytope,
     sphere_sphere,
 )
-from dem.contact.detection.polytope import BLEND, polytope_contact, polytope_plane
+from dem.contact.detection.polytope import BLEND, DEEPER, polytope_contact, polytope_plane
 from dem.shapes.table import BOX, POLYGON, POLYHEDRON, ShapeTable
 
 SQ3 = np.sqrt(3.0)
@@ -217,7 +217,15 @@ def contact_ref(geo, sa, sb, dim, pos, rot):
     use1 = d1 > d2 + tie or (d1 >= d2 - tie and n1 >= n2)
     rule = ""
     if dim == 2 and (depth_ref(va, fb).sum() > 0.0 or depth_ref(vb, fa).sum() > 0.0):
-        return corners_ref(va, fa, vb, fb)
+        oc, nc, cc, rule = corners_ref(va, fa, vb, fb)
+        ov, n, c = (d1, -m1, x1 + 0.5 * d1 * m1) if use1 else (d2, m2, x2 + 0.5 * d2 * m2)
+        vmax = max(depth_ref(va, fb).max(), depth_ref(vb, fa).max())
+        u = np.clip((ov / vmax - 1) / (DEEPER - 1), 0, 1)  # deeper than any corner
+        if u == 0:
+            return oc, nc, cc, rule
+        n = (1 - u) * nc + u * n
+        return ((1 - u) * oc + u * ov, n / np.linalg.norm(n), (1 - u) * cc + u * c,
+                "deeper")
     if (n1 if use1 else n2) == 0:
         if dim == 2:  # not a vertex in 2D: only for deep overlaps, kept as it is
             return (d1, -m1, x1 + 0.5 * d1 * m1, "2D") if use1 else (
@@ -274,7 +282,8 @@ def corners_ref(va, fa, vb, fb):
     c = (w1 * p1 + w2 * p2) / (w1 + w2)
     # the point of the line of action {p : p x force = moment} nearest c
     t = np.array([-force[1], force[0]]) / np.linalg.norm(force)
-    lam = (moment - cross(c, force)) / cross(t, force)
+    reach = np.linalg.norm(p1 - p2)
+    lam = np.clip((moment - cross(c, force)) / cross(t, force), -reach, reach)
     return (s * np.linalg.norm(force), force / np.linalg.norm(force), c + lam * t,
             "blend-" + rule)
 
@@ -521,6 +530,34 @@ def test_staggered_squares_point_moves_continuously():
     corner_a = pos[0, 0] - h * np.cos(0.02) + h * np.sin(0.02)  # A's lower left
     assert xs[0] == pytest.approx(h, abs=1e-5) and xs[-1] == pytest.approx(corner_a)
     assert np.abs(np.diff(xs)).max() < 0.01 * (xs[0] - xs[-1])
+
+
+def test_corner_pushed_through_a_plank_keeps_pushing_back():
+    """2D: a square's corner pushed through a plank 40 mm thick. Past the plank's middle
+    the corner is nearer the far face, its own depth falls and its normal turns over;
+    the programme's depth (the plank deep in the square's corner) takes over within a
+    tenth of the corner's depth, so the overlap keeps growing and the normal keeps
+    pushing the square back, where the corners alone would let it fall through. Within
+    1 mm past the middle the two are blended and the normal points the wrong way."""
+    geo = table([box_rows([0.05, 0.05]), box_rows([0.5, 0.02])])
+    tip = 0.05 * np.sqrt(2.0)
+    rot = np.array([[np.pi / 4], [0.0]])
+    ys = np.linspace(0.019, -0.05, 691)  # the corner's height, the plank at |y| < 0.02
+    ovs, ns = [], []
+    for y in ys:
+        pos = np.array([[0.01, y + tip], [0.0, 0.0]])
+        ov, n, c = contact(2, 0, 1, pos, rot, geo)
+        # (the point is not compared: past the middle the deepest point of the square
+        # in the plank is any of a segment on the plank's mid-line)
+        assert ov == pytest.approx(contact_ref(geo, 0, 1, 2, pos, rot)[0], abs=1e-14)
+        ovs.append(ov)
+        ns.append(n)
+    ovs, ns = np.array(ovs), np.array(ns)
+    window = (ys < 0.0) & (ys > -0.001)
+    assert np.all(ns[~window, 1] < -0.999)  # pushing the square back up
+    assert np.all(ovs >= 0.97 * np.maximum.accumulate(ovs))
+    assert np.abs(np.diff(ovs)).max() < 3e-4  # steps of 1e-4 in y
+    assert ovs[-1] == pytest.approx(0.07 / np.sqrt(2.0), rel=1e-12)  # P2: the plank in A
 
 
 def moved_overlap(geo, sa, sb, pos, rot, dx, dtheta):

@@ -71,8 +71,14 @@ the normal and the torque jump by a whole face as a body rocks through the tie, 
 pile of polygons then never comes to rest (it rattles at 1e-3 m/s; see
 ``tests/dem/test_shape_dynamics.py::test_polygon_pile_comes_to_rest``).
 
-Without any corner inside (two long bodies crossing deeply), the deeper of P1 and P2
-gives the overlap, the normal and the point.
+The programme still decides what the corners cannot see. Without any corner inside (two
+long bodies crossing deeply) the deeper of P1 and P2 gives the overlap, the normal and
+the point; and where its depth exceeds the deepest corner's (a corner pushed past the
+middle of a thin body, where its nearest face and so its normal turn over) its answer
+is blended in as the ratio goes from 1 to ``DEEPER`` = 1.1, so the overlap keeps
+growing and the body keeps being pushed back instead of falling through (a 5,000-polygon
+pour did, before). For a corner in a face the two depths are equal and the blend is
+idle.
 
 Contact point of a vertex on a face (3D)
 ----------------------------------------
@@ -111,8 +117,11 @@ TIE = 1e-12
 #: a pivot row must cross the edge direction by more than this (relative to |d|)
 _CROSS = 1e-12
 _MAX_PIVOTS = 100
-#: width of the blend of the two bodies' corners, relative to the deeper's depth
-BLEND = 0.5
+#: width of the smooth maximum of two bodies' corner depths, relative to their mean
+BLEND = 0.25
+#: the programme's depth takes over from the corners' as its ratio to the deepest
+#: corner's goes from 1 to this
+DEEPER = 1.1
 
 
 @kernel(inline=True)
@@ -351,19 +360,31 @@ def _polytope2(sa, a, sb, b, sx, sy, pos, rot, geo):
         return -t1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, i1
     t2, x2, y2, m2x, m2y, n2, i2, s2, s2x, s2y, g2x, g2y, v2 = _deepest2(
         sa, sca, sb, scb, c, -s, qx, qy, vstart, verts, fstart, faces, tol)
-    if s1 > 0.0 or s2 > 0.0:  # a vertex inside: the corners' smooth maximum
-        return _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x, s1y, g1x, g1y,
-                         v1, s2, s2x, s2y, g2x, g2y, v2, i1 + i2)
-    d1, d2 = -t1, -t2  # edges across edges, no vertex inside: the deeper programme
+    # the deeper programme's answer
+    d1, d2 = -t1, -t2
     if d1 > d2 + tol or (d1 >= d2 - tol and n1 >= n2):
-        nx, ny = -(cb * m1x - snb * m1y), -(snb * m1x + cb * m1y)  # -(B's normal)
+        ov, nx, ny = d1, -(cb * m1x - snb * m1y), -(snb * m1x + cb * m1y)  # -(B's normal)
         wx = cb * x1 - snb * y1 + pos[b, 0] + sx - 0.5 * d1 * nx
         wy = snb * x1 + cb * y1 + pos[b, 1] + sy - 0.5 * d1 * ny
-        return d1, nx, ny, 0.0, wx, wy, 0.0, i1 + i2
-    nx, ny = ca * m2x - sna * m2y, sna * m2x + ca * m2y  # A's normal
-    wx = ca * x2 - sna * y2 + pos[a, 0] + 0.5 * d2 * nx
-    wy = sna * x2 + ca * y2 + pos[a, 1] + 0.5 * d2 * ny
-    return d2, nx, ny, 0.0, wx, wy, 0.0, i1 + i2
+    else:
+        ov, nx, ny = d2, ca * m2x - sna * m2y, sna * m2x + ca * m2y  # A's normal
+        wx = ca * x2 - sna * y2 + pos[a, 0] + 0.5 * d2 * nx
+        wy = sna * x2 + ca * y2 + pos[a, 1] + 0.5 * d2 * ny
+    if s1 <= 0.0 and s2 <= 0.0:  # edges across edges, no corner inside
+        return ov, nx, ny, 0.0, wx, wy, 0.0, i1 + i2
+    oc, ncx, ncy, _, cx, cy, _, _ = _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x,
+                                              s1y, g1x, g1y, v1, s2, s2x, s2y, g2x, g2y, v2)
+    # the corners' answer, unless the bodies overlap deeper than their deepest corner
+    # (long bodies crossing, a corner past a thin body's middle): then the programme's,
+    # blended in as the ratio of the two depths goes from 1 to DEEPER
+    vmax = max(v1, v2)
+    u = 0.0 if ov <= vmax else min(1.0, (ov / vmax - 1.0) / (DEEPER - 1.0))
+    if u == 0.0:
+        return oc, ncx, ncy, 0.0, cx, cy, 0.0, i1 + i2
+    nx, ny = (1.0 - u) * ncx + u * nx, (1.0 - u) * ncy + u * ny
+    norm = math.sqrt(nx * nx + ny * ny)
+    return ((1.0 - u) * oc + u * ov, nx / norm, ny / norm, 0.0, (1.0 - u) * cx + u * wx,
+            (1.0 - u) * cy + u * wy, 0.0, i1 + i2)
 
 
 @kernel(inline=True)
@@ -383,7 +404,7 @@ def _corner_term2(sw, swx, swy, sgx, sgy, depth, co, so, ox, oy):
 
 @kernel
 def _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x, s1y, g1x, g1y, v1,
-              s2, s2x, s2y, g2x, g2y, v2, pivots):
+              s2, s2x, s2y, g2x, g2y, v2):
     """The contact from the corners inside: A's in B (depth ``v1``, sums in B's frame)
     and B's in A. One side only: its term. Both: the gradient of the elastic energy of
     the smooth maximum ``S`` of the two depths, as one force."""
@@ -396,14 +417,14 @@ def _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x, s1y, g1x, g1y, v1,
         p2x, p2y, n2x, n2y = _corner_term2(s2, s2x, s2y, g2x, g2y, v2, ca, sna,
                                            pos[a, 0], pos[a, 1])
     if s2 <= 0.0:
-        return v1, n1x, n1y, 0.0, p1x, p1y, 0.0, pivots
+        return v1, n1x, n1y, 0.0, p1x, p1y, 0.0, 0
     if s1 <= 0.0:
-        return v2, n2x, n2y, 0.0, p2x, p2y, 0.0, pivots
+        return v2, n2x, n2y, 0.0, p2x, p2y, 0.0, 0
     ov, w1, w2 = smooth_max(v1, v2)
     if w2 == 0.0:
-        return v1, n1x, n1y, 0.0, p1x, p1y, 0.0, pivots
+        return v1, n1x, n1y, 0.0, p1x, p1y, 0.0, 0
     if w1 == 0.0:
-        return v2, n2x, n2y, 0.0, p2x, p2y, 0.0, pivots
+        return v2, n2x, n2y, 0.0, p2x, p2y, 0.0, 0
     # forces w1 n1 at p1 and w2 n2 at p2 (times k S): their resultant, on its line of
     # action through the point nearest their weighted mean
     nx, ny = w1 * n1x + w2 * n2x, w1 * n1y + w2 * n2y
@@ -413,8 +434,9 @@ def _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x, s1y, g1x, g1y, v1,
     torque = (w1 * ((p1x - cx) * n1y - (p1y - cy) * n1x)
               + w2 * ((p2x - cx) * n2y - (p2y - cy) * n2x))
     nx, ny = nx / norm, ny / norm
-    lam = -torque / norm
-    return ov * norm, nx, ny, 0.0, cx - lam * ny, cy + lam * nx, 0.0, pivots
+    reach = math.sqrt((p1x - p2x) ** 2 + (p1y - p2y) ** 2)  # never far from the corners
+    lam = min(reach, max(-reach, -torque / norm))
+    return ov * norm, nx, ny, 0.0, cx - lam * ny, cy + lam * nx, 0.0, 0
 
 
 @kernel(inline=True)

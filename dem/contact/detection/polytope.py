@@ -381,9 +381,11 @@ def _polytope2(sa, a, sb, b, sx, sy, pos, rot, geo):
     u = 0.0 if ov <= vmax else min(1.0, (ov / vmax - 1.0) / (DEEPER - 1.0))
     if u == 0.0:
         return oc, ncx, ncy, 0.0, cx, cy, 0.0, i1 + i2
-    nx, ny = (1.0 - u) * ncx + u * nx, (1.0 - u) * ncy + u * ny
-    norm = math.sqrt(nx * nx + ny * ny)
-    return ((1.0 - u) * oc + u * ov, nx / norm, ny / norm, 0.0, (1.0 - u) * cx + u * wx,
+    mx, my = (1.0 - u) * ncx + u * nx, (1.0 - u) * ncy + u * ny
+    norm = math.sqrt(mx * mx + my * my)
+    if norm > 1e-9:  # else opposite normals cancel: keep the programme's
+        nx, ny = mx / norm, my / norm
+    return ((1.0 - u) * oc + u * ov, nx, ny, 0.0, (1.0 - u) * cx + u * wx,
             (1.0 - u) * cy + u * wy, 0.0, i1 + i2)
 
 

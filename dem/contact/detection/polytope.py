@@ -447,8 +447,9 @@ def smooth_max(d1, d2):
 
     ``S = max`` where ``|d1 - d2| >= h``, ``h = BLEND (d1 + d2) / 2``; within, the
     quadratic blend ``m + h / 4 + (d1 - d2)^2 / (4 h)`` (``m`` the mean), at most
-    ``BLEND / 8`` of the depth above the maximum (at a tie). Homogeneous of degree
-    one, so it is a function of the depths alone and its gradient a force field.
+    ``BLEND / 4`` of the depth above the maximum (at a tie, where the gradient's
+    components sum to ``1 + BLEND / 4``). Homogeneous of degree one, so it is a
+    function of the depths alone and its gradient a force field.
     """
     m = 0.5 * (d1 + d2)
     h = BLEND * m

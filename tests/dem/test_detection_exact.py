@@ -223,9 +223,10 @@ def contact_ref(geo, sa, sb, dim, pos, rot):
         u = np.clip((ov / vmax - 1) / (DEEPER - 1), 0, 1)  # deeper than any corner
         if u == 0:
             return oc, nc, cc, rule
-        n = (1 - u) * nc + u * n
-        return ((1 - u) * oc + u * ov, n / np.linalg.norm(n), (1 - u) * cc + u * c,
-                "deeper")
+        m = (1 - u) * nc + u * n
+        if np.linalg.norm(m) > 1e-9:  # else opposite normals cancel: the programme's
+            n = m / np.linalg.norm(m)
+        return (1 - u) * oc + u * ov, n, (1 - u) * cc + u * c, "deeper"
     if (n1 if use1 else n2) == 0:
         if dim == 2:  # not a vertex in 2D: only for deep overlaps, kept as it is
             return (d1, -m1, x1 + 0.5 * d1 * m1, "2D") if use1 else (

@@ -1,6 +1,9 @@
-"""docs/tutorial.md, executed: every ``bash`` and ``python`` block, in page order, in one
-scratch directory holding a copy of ``examples/``, with the venv's commands first on
-the PATH. A block that fails names itself and shows its output."""
+"""The documentation, executed. docs/tutorial.md: every ``bash`` and ``python`` block, in
+page order, in one scratch directory holding a copy of ``examples/``, with the venv's
+commands first on the PATH. The reference pages (``SNIPPET_PAGES``): every ``python``
+block, and the ``.venv/bin/dem`` commands of their unlabelled blocks (``make`` targets,
+MPI runs and benchmarks are left to their own tests). A block that fails names itself
+and shows its output."""
 
 import os
 import re
@@ -14,13 +17,39 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "tutorial.md"
 BLOCK = re.compile(r"^```(\w*)\n(.*?)^```", re.DOTALL | re.MULTILINE)
+#: pages whose Python snippets and ``.venv/bin/dem`` commands are run as written
+SNIPPET_PAGES = ["quickstart.md", "shapes.md", "rve.md", "peridynamics.md"]
 
 
-def blocks():
+def blocks(page=PAGE):
     """(language, code, line) of every fenced block of the page."""
-    text = PAGE.read_text()
+    text = page.read_text()
     return [(m.group(1), m.group(2), text[:m.start()].count("\n") + 1)
             for m in BLOCK.finditer(text)]
+
+
+def run_blocks(page, runnable, cwd):
+    """Run the page's blocks that ``runnable(lang, code)`` turns into a command (None:
+    skipped), in order, in ``cwd`` holding a copy of ``examples/``; fail on the first
+    that exits non-zero. Returns how many ran."""
+    shutil.copytree(ROOT / "examples", cwd / "examples")
+    env = dict(os.environ)
+    env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
+    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
+    env["MPLBACKEND"] = "Agg"
+    ran = 0
+    for lang, code, line in blocks(page):
+        cmd = runnable(lang, code)
+        if cmd is None:
+            continue
+        r = subprocess.run(cmd, cwd=cwd, env=env, capture_output=True, text=True,
+                           timeout=600, check=False)
+        if r.returncode != 0:
+            pytest.fail(f"docs/{page.name}:{line} ({lang or 'command'} block) exited "
+                        f"{r.returncode}\n--- stdout\n{r.stdout[-3000:]}\n--- stderr\n"
+                        f"{r.stderr[-3000:]}")
+        ran += 1
+    return ran
 
 
 def test_the_page_has_runnable_blocks_of_both_kinds():
@@ -30,18 +59,27 @@ def test_the_page_has_runnable_blocks_of_both_kinds():
 
 
 def test_tutorial_runs_as_written(tmp_path):
-    shutil.copytree(ROOT / "examples", tmp_path / "examples")
-    env = dict(os.environ)
-    env["PATH"] = str(Path(sys.executable).parent) + os.pathsep + env.get("PATH", "")
-    env["PYTHONPATH"] = str(ROOT) + os.pathsep + env.get("PYTHONPATH", "")
-    env["MPLBACKEND"] = "Agg"
-    for lang, code, line in blocks():
+    def runnable(lang, code):
         if lang == "text":
-            continue
-        cmd = ["bash", "-euo", "pipefail", "-c", code] if lang == "bash" else \
-              [sys.executable, "-c", code]
-        r = subprocess.run(cmd, cwd=tmp_path, env=env, capture_output=True, text=True,
-                           timeout=600, check=False)
-        if r.returncode != 0:
-            pytest.fail(f"docs/tutorial.md:{line} ({lang} block) exited {r.returncode}\n"
-                        f"--- stdout\n{r.stdout[-3000:]}\n--- stderr\n{r.stderr[-3000:]}")
+            return None
+        return (["bash", "-euo", "pipefail", "-c", code] if lang == "bash" else
+                [sys.executable, "-c", code])
+
+    assert run_blocks(PAGE, runnable, tmp_path) == len(
+        [b for b in blocks() if b[0] != "text"])
+
+
+@pytest.mark.parametrize("name", SNIPPET_PAGES)
+def test_reference_page_snippets_run_as_written(name, tmp_path):
+    def runnable(lang, code):
+        if lang == "python":
+            return [sys.executable, "-c", code]
+        lines = [ln.split("#")[0].strip() for ln in code.splitlines()]
+        dem_cmds = [ln for ln in lines if ln.startswith(".venv/bin/dem ")]
+        if lang == "" and dem_cmds:
+            bin_dir = str(Path(sys.executable).parent)
+            return ["bash", "-euo", "pipefail", "-c", "\n".join(
+                bin_dir + ln[len(".venv/bin"):] for ln in dem_cmds)]
+        return None
+
+    assert run_blocks(ROOT / "docs" / name, runnable, tmp_path) > 0

@@ -68,7 +68,7 @@ always has one). The reported overlap is ``S`` times the length of that sum, so 
 spring gives exactly that force; at a tie of two parallel faces it is ``(1 + BLEND /
 4)^2 = 1.13`` times the depth. Picking the deeper term outright instead makes the point,
 the normal and the torque jump by a whole face as a body rocks through the tie, and a
-pile of polygons then never comes to rest (it rattles at 1e-3 m/s; see
+pile of polygons then never comes to rest (it rattles at 1e-4 m/s; see
 ``tests/dem/test_shape_dynamics.py::test_polygon_pile_comes_to_rest``).
 
 The programme still decides what the corners cannot see. Without any corner inside (two
@@ -185,7 +185,8 @@ def _row2(k, nfo, fo0, fi0, faces, sco, sci, c, s, px, py):
 def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol):
     """Minimise the outer polygon's face function over the inner polygon (outer frame).
 
-    Returns ``(t, x, y, nx, ny, count, pivots, sw, swx, swy, sgx, sgy, dv)``: the optimum, its point
+    Returns ``(t, x, y, nx, ny, count, pivots, sw, swx, swy, sgx, sgy, dv)``: the
+    optimum, its point
     (the average of the optimal inner vertices when several are), the normalised sum of
     the outer normals attaining the max there, how many inner vertices are optimal (0:
     the optimum is not a vertex), the sums above over the inner vertices inside, and
@@ -372,8 +373,8 @@ def _polytope2(sa, a, sb, b, sx, sy, pos, rot, geo):
         wy = sna * x2 + ca * y2 + pos[a, 1] + 0.5 * d2 * ny
     if s1 <= 0.0 and s2 <= 0.0:  # edges across edges, no corner inside
         return ov, nx, ny, 0.0, wx, wy, 0.0, i1 + i2
-    oc, ncx, ncy, _, cx, cy, _, _ = _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x,
-                                              s1y, g1x, g1y, v1, s2, s2x, s2y, g2x, g2y, v2)
+    oc, ncx, ncy, cx, cy = _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x, s1y,
+                                     g1x, g1y, v1, s2, s2x, s2y, g2x, g2y, v2)
     # the corners' answer, unless the bodies overlap deeper than their deepest corner
     # (long bodies crossing, a corner past a thin body's middle): then the programme's,
     # blended in as the ratio of the two depths goes from 1 to DEEPER
@@ -401,7 +402,8 @@ def _corner_term2(sw, swx, swy, sgx, sgy, depth, co, so, ox, oy):
     norm = math.sqrt(sgx * sgx + sgy * sgy)
     mx, my = (swx - 0.5 * depth * sgx) / sw, (swy - 0.5 * depth * sgy) / sw
     gx, gy = sgx / norm, sgy / norm
-    return co * mx - so * my + ox, so * mx + co * my + oy, co * gx - so * gy, so * gx + co * gy
+    return (co * mx - so * my + ox, so * mx + co * my + oy, co * gx - so * gy,
+            so * gx + co * gy)
 
 
 @kernel
@@ -409,7 +411,7 @@ def _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x, s1y, g1x, g1y, v1,
               s2, s2x, s2y, g2x, g2y, v2):
     """The contact from the corners inside: A's in B (depth ``v1``, sums in B's frame)
     and B's in A. One side only: its term. Both: the gradient of the elastic energy of
-    the smooth maximum ``S`` of the two depths, as one force."""
+    the smooth maximum ``S`` of the two depths, as one force: ``(ov, nx, ny, cx, cy)``."""
     p1x, p1y, n1x, n1y, p2x, p2y, n2x, n2y = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     if s1 > 0.0:
         p1x, p1y, n1x, n1y = _corner_term2(s1, s1x, s1y, g1x, g1y, v1, cb, snb,
@@ -419,14 +421,14 @@ def _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x, s1y, g1x, g1y, v1,
         p2x, p2y, n2x, n2y = _corner_term2(s2, s2x, s2y, g2x, g2y, v2, ca, sna,
                                            pos[a, 0], pos[a, 1])
     if s2 <= 0.0:
-        return v1, n1x, n1y, 0.0, p1x, p1y, 0.0, 0
+        return v1, n1x, n1y, p1x, p1y
     if s1 <= 0.0:
-        return v2, n2x, n2y, 0.0, p2x, p2y, 0.0, 0
+        return v2, n2x, n2y, p2x, p2y
     ov, w1, w2 = smooth_max(v1, v2)
     if w2 == 0.0:
-        return v1, n1x, n1y, 0.0, p1x, p1y, 0.0, 0
+        return v1, n1x, n1y, p1x, p1y
     if w1 == 0.0:
-        return v2, n2x, n2y, 0.0, p2x, p2y, 0.0, 0
+        return v2, n2x, n2y, p2x, p2y
     # forces w1 n1 at p1 and w2 n2 at p2 (times k S): their resultant, on its line of
     # action through the point nearest their weighted mean
     nx, ny = w1 * n1x + w2 * n2x, w1 * n1y + w2 * n2y
@@ -438,7 +440,7 @@ def _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x, s1y, g1x, g1y, v1,
     nx, ny = nx / norm, ny / norm
     reach = math.sqrt((p1x - p2x) ** 2 + (p1y - p2y) ** 2)  # never far from the corners
     lam = min(reach, max(-reach, -torque / norm))
-    return ov * norm, nx, ny, 0.0, cx - lam * ny, cy + lam * nx, 0.0, 0
+    return ov * norm, nx, ny, cx - lam * ny, cy + lam * nx
 
 
 @kernel(inline=True)

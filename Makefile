@@ -7,7 +7,7 @@ export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
 export NUMBA_THREADING_LAYER ?= omp
 export MPLBACKEND ?= Agg
 
-.PHONY: demo test test-shapes test-rest test-mpi bench venv clean
+.PHONY: demo test test-shapes test-rest test-mpi docs-walk bench venv clean
 
 venv: $(STAMP)
 
@@ -25,6 +25,8 @@ demo: $(STAMP)
 # compiles the two halves at once; then the MPI tests.
 SHAPE_TESTS := $(sort $(wildcard tests/dem/test_detection_*.py tests/dem/test_shape*.py \
 	tests/dem/test_io_shapes.py tests/dem/test_interpreted.py))
+# the documentation pages run as written (minutes) go with the shapes, the shorter half
+DOC_TESTS := tests/test_doc_pages.py
 PYTEST := $(BIN)/python -m pytest -q -p no:cacheprovider
 
 test: $(STAMP)
@@ -32,15 +34,19 @@ test: $(STAMP)
 	$(MAKE) test-mpi
 
 test-shapes: $(STAMP)
-	$(PYTEST) --basetemp="$$(mktemp -d)/t" $(SHAPE_TESTS)
+	$(PYTEST) --basetemp="$$(mktemp -d)/t" $(SHAPE_TESTS) $(DOC_TESTS)
 	$(PYTEST) --doctest-modules dem hmm
 
 test-rest: $(STAMP)
 	$(PYTEST) --basetemp="$$(mktemp -d)/t" tests --ignore=tests/mpi \
-		$(addprefix --ignore=,$(SHAPE_TESTS))
+		$(addprefix --ignore=,$(SHAPE_TESTS) $(DOC_TESTS))
 
 test-mpi: $(STAMP)
 	NUMBA_NUM_THREADS=1 $(BIN)/mpiexec -n 2 $(BIN)/python -m mpi4py -m pytest -q -p no:cacheprovider tests/mpi
+
+# Every page of docs/ as written, the long commands included (tens of minutes).
+docs-walk: $(STAMP)
+	$(PYTEST) tests/test_tutorial.py tests/test_doc_pages.py tests/walk/walk_docs.py
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/dem_throughput.py

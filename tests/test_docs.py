@@ -15,5 +15,5 @@ def test_scene_reference_matches_schema():
 
 def test_readme_quick_start_is_two_commands():
     readme = (DOCS.parent / "README.md").read_text()
-    block = readme.split("## Quick start", 1)[1].split("```")[1]
+    block = readme.split("## Quick start", 1)[1].split("```")[1].split("\n", 1)[1]
     assert [line for line in block.splitlines() if line.strip()] == ["make demo", "make test"]

@@ -1,9 +1,7 @@
-"""The documentation, executed. docs/tutorial.md: every ``bash`` and ``python`` block, in
-page order, in one scratch directory holding a copy of ``examples/``, with the venv's
-commands first on the PATH. The reference pages (``SNIPPET_PAGES``): every ``python``
-block, and the ``.venv/bin/dem`` commands of their unlabelled blocks (``make`` targets,
-MPI runs and benchmarks are left to their own tests). A block that fails names itself
-and shows its output."""
+"""docs/tutorial.md, executed: every ``bash`` and ``python`` block, in page order, in one
+scratch directory holding a copy of ``examples/``, with the venv's commands first on the
+PATH. A block that fails names itself and shows its output. (The other pages:
+test_doc_pages.py.)"""
 
 import os
 import re
@@ -17,8 +15,6 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "tutorial.md"
 BLOCK = re.compile(r"^```(\w*)\n(.*?)^```", re.DOTALL | re.MULTILINE)
-#: pages whose Python snippets and ``.venv/bin/dem`` commands are run as written
-SNIPPET_PAGES = ["quickstart.md", "shapes.md", "rve.md", "peridynamics.md"]
 
 
 def blocks(page=PAGE):
@@ -67,19 +63,3 @@ def test_tutorial_runs_as_written(tmp_path):
 
     assert run_blocks(PAGE, runnable, tmp_path) == len(
         [b for b in blocks() if b[0] != "text"])
-
-
-@pytest.mark.parametrize("name", SNIPPET_PAGES)
-def test_reference_page_snippets_run_as_written(name, tmp_path):
-    def runnable(lang, code):
-        if lang == "python":
-            return [sys.executable, "-c", code]
-        lines = [ln.split("#")[0].strip() for ln in code.splitlines()]
-        dem_cmds = [ln for ln in lines if ln.startswith(".venv/bin/dem ")]
-        if lang == "" and dem_cmds:
-            bin_dir = str(Path(sys.executable).parent)
-            return ["bash", "-euo", "pipefail", "-c", "\n".join(
-                bin_dir + ln[len(".venv/bin"):] for ln in dem_cmds)]
-        return None
-
-    assert run_blocks(ROOT / "docs" / name, runnable, tmp_path) > 0

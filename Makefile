@@ -25,8 +25,9 @@ demo: $(STAMP)
 # compiles the two halves at once; then the MPI tests.
 SHAPE_TESTS := $(sort $(wildcard tests/dem/test_detection_*.py tests/dem/test_shape*.py \
 	tests/dem/test_io_shapes.py tests/dem/test_interpreted.py))
-# the documentation pages run as written (minutes) go with the shapes, the shorter half
+# the documentation pages run as written (about 4 minutes), shared between the halves
 DOC_TESTS := tests/test_doc_pages.py
+DOC_REST := batch or multiscale
 PYTEST := $(BIN)/python -m pytest -q -p no:cacheprovider
 
 test: $(STAMP)
@@ -34,12 +35,14 @@ test: $(STAMP)
 	$(MAKE) test-mpi
 
 test-shapes: $(STAMP)
-	$(PYTEST) --basetemp="$$(mktemp -d)/t" $(SHAPE_TESTS) $(DOC_TESTS)
+	$(PYTEST) --basetemp="$$(mktemp -d)/t" $(SHAPE_TESTS)
+	$(PYTEST) --basetemp="$$(mktemp -d)/t" $(DOC_TESTS) -k "not ($(DOC_REST))"
 	$(PYTEST) --doctest-modules dem hmm
 
 test-rest: $(STAMP)
 	$(PYTEST) --basetemp="$$(mktemp -d)/t" tests --ignore=tests/mpi \
 		$(addprefix --ignore=,$(SHAPE_TESTS) $(DOC_TESTS))
+	$(PYTEST) --basetemp="$$(mktemp -d)/t" $(DOC_TESTS) -k "$(DOC_REST)"
 
 test-mpi: $(STAMP)
 	NUMBA_NUM_THREADS=1 $(BIN)/mpiexec -n 2 $(BIN)/python -m mpi4py -m pytest -q -p no:cacheprovider tests/mpi

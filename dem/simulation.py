@@ -35,10 +35,9 @@ log = logging.getLogger(__name__)
 #: (docs/performance.md): the largest factor whose binary-collision errors, averaged
 #: over where in a step contacts start, stay below 1% (about 22 steps per contact)
 DT_FACTOR = 0.07
-#: steps above this fraction of the two-body critical step are refused: a close-packed
-#: assembly (12 contacts per sphere) is unstable from 0.5 x, a hexagonal one (6 per
-#: disk) from 0.55 x (docs/stability.md)
-STABLE_FACTOR = 0.45
+#: steps above this fraction of a close packing's stability limit
+#: (:func:`packing_stability` x the two-body critical step) are refused
+STABLE_FACTOR = 0.9
 #: the step loop evaluates the Verlet pairs within this fraction of the skin (the
 #: inner list, refreshed from the Verlet list when a body has moved half of it)
 INNER_SKIN = 0.05
@@ -47,22 +46,29 @@ PARALLEL_MIN_BODIES = 1000
 
 
 #: a close-packed assembly's highest frequency over the two-body one: 1 / the
-#: measured blow-up factor 0.5 (docs/stability.md). Its dashpots add up as its springs
-#: do, so its damping ratio is this multiple of the two-body one too
+#: measured blow-up factor 0.5 of normal springs (docs/stability.md). Its dashpots add
+#: up as its springs do, so its damping ratio is this multiple of the two-body one too
 PACKING_FREQUENCY_RATIO = 2.0
+#: the same ratio per family of contact modes and dimension. Normal springs: 2 (fcc
+#: spheres; the hexagonal disks' sqrt(3) is taken as 2 too). Tangential springs with
+#: their rotational coupling: every body spinning the same way about one axis slips all
+#: its contacts at once, sqrt(40/7) in 3D (fcc: 16 kt r^2 against I = 0.4 m r^2, where
+#: the pair has 7 kt / m) and 2 in 2D (hexagonal: 12 kt r^2 against 0.5 m r^2 and
+#: 6 kt / m); the lattices' stiffness matrices give the same (tests/test_stability.py)
+PACKING_RATIOS = {"normal": {2: 2.0, 3: 2.0},
+                  "tangential": {2: 2.0, 3: math.sqrt(40.0 / 7.0)}}
 
 
 def damped_stability(zeta, local_damping=0.0):
-    """Fraction of the undamped stable step left to the stiffest mode of a close
-    packing whose contacts have damping ratio ``zeta``, under Cundall local damping
-    ``local_damping``.
+    """The reduction of an RVE's default step (:func:`dem.rve.quasi_static_dt`) for
+    contact damping ratio ``zeta`` and Cundall local damping ``local_damping``.
 
     Explicit dashpots (velocity Verlet with the half-step velocity) are stable for
-    ``omega dt < 2 (sqrt(1 + z^2) - z)``; the packing's stiffest mode has ``z`` =
-    :data:`PACKING_FREQUENCY_RATIO` x ``zeta``. Local damping ``a`` scales a force by
-    up to ``1 + a`` while it opposes the velocity, a stiffer spring for that half of an
-    oscillation: the limit falls by ``sqrt(1 + a)`` (exact for one mode without
-    dashpots, within 4 % with them). 1 with neither.
+    ``omega dt < 2 (sqrt(1 + z^2) - z)``; here ``z`` =
+    :data:`PACKING_FREQUENCY_RATIO` x ``zeta``, and local damping divides by
+    ``sqrt(1 + a)``. 1 with neither. (The refusal threshold of a step is
+    :func:`packing_stability`, which also raises ``z`` by ``sqrt(1 + a)`` and tells
+    the families of modes apart.)
 
     >>> round(damped_stability(0.0), 2), round(damped_stability(0.73), 2)
     (1.0, 0.31)
@@ -71,6 +77,36 @@ def damped_stability(zeta, local_damping=0.0):
     """
     z = PACKING_FREQUENCY_RATIO * zeta
     return (math.sqrt(1.0 + z * z) - z) / math.sqrt(1.0 + local_damping)
+
+
+def packing_stability(modes, dim, local_damping=0.0):
+    """Stability limit of a close packing, as a fraction of the two-body critical step
+    ``sqrt(2 m_min / k_max)``.
+
+    ``modes`` are ``(family, k, zeta)`` (:meth:`dem.ContactModel.modes`). A family's
+    fastest packing mode has :data:`PACKING_RATIOS` ``R`` times the two-body frequency
+    (``2 sqrt(k / k_max)`` over the critical step) and damping ratio. Explicit dashpots
+    (velocity Verlet with the half-step velocity) are stable for ``omega dt < 2
+    (sqrt(1 + z^2) - z)``. Cundall local damping ``a`` scales the force, spring and
+    dashpot alike, by up to ``1 + a`` while it opposes the velocity: ``omega`` and
+    ``z`` grow by ``sqrt(1 + a)``. The limit is the smallest over the modes.
+
+    >>> round(packing_stability([("normal", 1.0, 0.0)], 3), 3)
+    0.5
+    >>> round(packing_stability([("normal", 1.0, 0.0), ("tangential", 1.0, 0.0)], 3), 3)
+    0.418
+    """
+    k_max = max(k for _, k, _ in modes)
+    scale = math.sqrt(1.0 + local_damping)
+    limit = math.inf
+    for family, k, zeta in modes:
+        if k <= 0.0:
+            continue
+        ratio = PACKING_RATIOS[family][dim]
+        z = ratio * zeta * scale
+        limit = min(limit, (math.sqrt(1.0 + z * z) - z)
+                    / (ratio * scale * math.sqrt(k / k_max)))
+    return limit
 
 
 class SimulationError(RuntimeError):
@@ -112,10 +148,10 @@ class Simulation:
         Contact laws (a bare :class:`~dem.contact.laws.Law` acts on every pair).
     dt : float, optional
         Time step [s]; default ``DT_FACTOR * dt_crit``, or half the largest step
-        accepted where heavy dashpots make that smaller. A step above ``STABLE_FACTOR *
-        dt_crit`` (the measured limit of a close packing), times
-        :func:`damped_stability` of the most damped contact mode and the local damping,
-        is refused unless ``allow_unstable_dt=True``.
+        accepted where heavy dashpots make that smaller. A step above ``STABLE_FACTOR``
+        x the limit of a close packing of these bodies (:func:`packing_stability` of
+        the contact modes and the local damping, x ``dt_crit``) is refused unless
+        ``allow_unstable_dt=True``.
     gravity : (d,) array_like, optional
         Gravitational acceleration [m/s^2].
     damping : float
@@ -163,8 +199,9 @@ class Simulation:
         #: largest damping ratio of the contact modes (dashpots lower the stable step)
         self.damping_ratio = (model.max_damping_ratio(bodies, m_min)
                               if math.isfinite(self.dt_crit) else 0.0)
-        factor = damped_stability(self.damping_ratio, damping)
-        #: the largest step accepted: STABLE_FACTOR x the damped two-body limit
+        factor = (packing_stability(model.modes(bodies, m_min), self.dim, damping)
+                  if math.isfinite(self.dt_crit) else 0.5)
+        #: the largest step accepted: STABLE_FACTOR x a close packing's limit
         self.dt_stable = STABLE_FACTOR * factor * self.dt_crit
         if dt is None:
             if not math.isfinite(self.dt_crit):
@@ -175,15 +212,13 @@ class Simulation:
         if not (dt > 0.0 and math.isfinite(dt)):
             raise ValueError(f"dt must be positive and finite, got {dt}")
         if dt > self.dt_stable and not allow_unstable_dt:
-            damped = (f", times {factor:.3g} for contact damping ratio "
-                      f"{self.damping_ratio:.3g} and local damping {damping:g}"
-                      if factor < 1.0 else "")
             raise ValueError(
                 f"dt = {dt:.4g} s exceeds the critical time step of a packing, "
-                f"{STABLE_FACTOR:g} x the two-body limit {self.dt_crit:.4g} s{damped} "
-                f"(lightest body {m_min:.4g} kg, stiffest contact {k_max:.4g} N/m; "
-                f"close-packed bodies blow up from 0.5 x); pass allow_unstable_dt=True "
-                f"to run anyway")
+                f"{self.dt_stable:.4g} s: {STABLE_FACTOR:g} x a close packing's limit, "
+                f"{factor:.3g} x the two-body limit {self.dt_crit:.4g} s (lightest body "
+                f"{m_min:.4g} kg, stiffest contact {k_max:.4g} N/m, contact damping ratio "
+                f"{self.damping_ratio:.3g}, local damping {damping:g}); pass "
+                f"allow_unstable_dt=True to run anyway")
         self.dt = dt
         g = np.zeros(self.dim) if gravity is None else np.asarray(gravity, dtype=np.float64)
         if g.shape != (self.dim,):

@@ -42,8 +42,11 @@ FULL = (re.compile(r"EXAMPLES_SIZE=full"), re.compile(r"^#!"), re.compile(r"^mak
         re.compile(r"examples/beams_lattice\.py"))
 #: commands the walk never runs: the suite and the benchmark figures themselves
 SUITE = (re.compile(r"^make (test|bench)$"), re.compile(r"^python benchmarks/(?!stability)"))
-#: files a page names without showing them: (page, name) -> source in the repository
-SETUP = {("cluster.md", "problem.toml"): "examples/biaxial.toml"}
+#: files a page names without showing them: (page, name) -> (source in the repository,
+#: {text: replacement})
+SETUP = {("cluster.md", "problem.toml"): (  # a problem of the page's kind: default
+    "examples/biaxial.toml",                   # output directory, checkpoints
+    {'dir = "output/biaxial"': "checkpoint_every = 5"})}
 
 
 class Block:
@@ -126,9 +129,13 @@ def scratch(cwd, page):
     cache = os.environ.get("NUMBA_CACHE_DIR")
     if cache:
         (cwd / ".numba_cache").symlink_to(Path(cache).resolve())
-    for (name, target), source in SETUP.items():
+    for (name, target), (source, edits) in SETUP.items():
         if name == page.name:
-            shutil.copy(ROOT / source, cwd / target)
+            text = (ROOT / source).read_text()
+            for old, new in edits.items():
+                assert old in text, (source, old)
+                text = text.replace(old, new)
+            (cwd / target).write_text(text)
     (cwd / "bin").mkdir()
     srun = cwd / "bin" / "srun"
     srun.write_text('#!/bin/bash\nwhile [[ "$1" == --* ]]; do shift; done\n'

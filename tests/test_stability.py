@@ -1,9 +1,11 @@
 """The stability map's lines, each crossed by a small scene (docs/stability.md).
 
 - DEM: a step above the critical step is refused unless asked for, and then the run
-  blows up with a :class:`dem.SimulationError`; the refusal threshold is the two-body
-  limit, and a dense lattice is unstable below it already (a hexagonal lattice of disks
-  from ``1/sqrt(3)`` of it: six contacts per disk).
+  blows up with a :class:`dem.SimulationError`. A dense lattice is unstable below the
+  two-body limit already (hexagonal disks from ``1/sqrt(3)`` of it, fcc spheres from 1/2
+  with normal springs and from ``1/sqrt(40/7)`` where their tangential springs spin
+  them); the refusal threshold is 0.9 x a close packing's limit, dashpots and local
+  damping included.
 - RVE: a relaxation that cannot finish within its step cap raises
   :class:`dem.rve.RelaxationError` saying what to change.
 - Macro Newton: a load step too large is cut until it converges; a load past the
@@ -65,8 +67,8 @@ def test_dt_above_critical_is_refused_then_blows_up():
 def test_dense_lattice_sets_the_refusal_threshold():
     """dt_crit = sqrt(2 m / k) is the limit of two bodies on one spring. Six contacts per
     disk stiffen the fastest mode: measured limit 0.5-0.55 dt_crit (2 / omega_max =
-    0.577 dt_crit), twelve per sphere 0.5; steps above STABLE_FACTOR = 0.45 dt_crit are
-    refused. At 0.4 the energy stays bounded; at 0.7, forced, the lattice blows up."""
+    0.577 dt_crit), twelve per sphere 0.5; steps above STABLE_FACTOR = 0.9 x 0.5 dt_crit
+    are refused. At 0.4 the energy stays bounded; at 0.7, forced, the lattice blows up."""
     from dem.observers import elastic_energy, kinetic_energy
 
     sim = lattice_sim(0.4)
@@ -77,12 +79,126 @@ def test_dense_lattice_sets_the_refusal_threshold():
         sim.run(25)
         err = max(err, abs(sum(kinetic_energy(sim.bodies)) + elastic_energy(sim) - e0))
     assert err < 0.5 * k0
-    assert dem.simulation.STABLE_FACTOR < 0.5
+    assert sim.dt_stable == pytest.approx(0.45 * sim.dt_crit, rel=1e-12)  # 0.9 x 0.5
     with pytest.raises(ValueError, match="exceeds the critical time step"):
         lattice_sim(0.7)
     sim = lattice_sim(0.7, allow_unstable_dt=True)
     with pytest.raises(dem.SimulationError):
         sim.run(2000)
+
+
+def fcc_lattice(side=2, squeeze=0.02, seed=0):
+    """Precompressed periodic fcc spheres (``side`` cubic cells of four per axis), random
+    velocities and spins small against the overlap."""
+    a = 2.0 * R * (1.0 - squeeze)
+    c = a * math.sqrt(2.0)
+    basis = np.array([[0, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5], [0, 0.5, 0.5]]) * c
+    cells = np.stack(np.meshgrid(*[np.arange(side) * c] * 3, indexing="ij"),
+                     -1).reshape(-1, 3)
+    bodies = dem.Bodies.spheres((cells[:, None] + basis[None]).reshape(-1, 3), radius=R,
+                                density=RHO)
+    rng = np.random.default_rng(seed)
+    omega = math.sqrt(KN / bodies.mass[0])
+    bodies.vel[:] = rng.normal(0.0, 0.05 * squeeze * R * omega, bodies.vel.shape)
+    bodies.vel -= bodies.vel.mean(axis=0)
+    bodies.ang_vel[:] = rng.normal(0.0, 0.05 * squeeze * omega, bodies.ang_vel.shape)
+    lo = -0.5 * a * np.ones(3)
+    return bodies, Box(lo, lo + side * c, [True] * 3)
+
+
+def lattice_matrices(dim, kn, kt):
+    """Mass and stiffness matrices of a touching periodic lattice (hexagonal disks, 4 x 4
+    rows; fcc spheres, 2 x 2 x 2 cells) of unit mass and radius 1/2: normal springs
+    ``kn`` and tangential springs ``kt`` at the contact points, spins included."""
+    r = 0.5
+    if dim == 2:
+        pts = np.array([[i + 0.5 * (j % 2), j * math.sqrt(3.0) / 2.0]
+                        for j in range(4) for i in range(4)])
+        length = np.array([4.0, 2.0 * math.sqrt(3.0)])
+        inertia, n_rot = 0.5 * r * r, 1
+    else:
+        c = math.sqrt(2.0)
+        basis = np.array([[0, 0, 0], [0.5, 0.5, 0], [0.5, 0, 0.5], [0, 0.5, 0.5]]) * c
+        pts = np.array([np.array(ijk) * c + b for ijk in np.ndindex(2, 2, 2)
+                        for b in basis])
+        length = np.full(3, 2.0 * c)
+        inertia, n_rot = 0.4 * r * r, 3
+    n_dof = dim + n_rot
+    stiff = np.zeros((len(pts) * n_dof,) * 2)
+
+    def spin_arm(v):  # the matrix of theta -> theta x v
+        if dim == 2:
+            return np.array([[-v[1]], [v[0]]])
+        return -np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
+
+    for i, j in zip(*np.triu_indices(len(pts), 1)):
+        d = pts[j] - pts[i]
+        d -= np.round(d / length) * length
+        if abs(np.linalg.norm(d) - 2.0 * r) > 1e-9:
+            continue
+        n = d / np.linalg.norm(d)
+        b = np.zeros((dim, stiff.shape[0]))  # contact point slip of j against i
+        b[:, j * n_dof:j * n_dof + dim] += np.eye(dim)
+        b[:, i * n_dof:i * n_dof + dim] -= np.eye(dim)
+        b[:, j * n_dof + dim:(j + 1) * n_dof] += spin_arm(-r * n)
+        b[:, i * n_dof + dim:(i + 1) * n_dof] -= spin_arm(r * n)
+        nn = np.outer(n, n)
+        stiff += b.T @ (kn * nn + kt * (np.eye(dim) - nn)) @ b
+    mass = np.tile(np.r_[np.ones(dim), inertia * np.ones(n_rot)], len(pts))
+    return mass, stiff
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_packing_ratios_are_the_close_packed_lattices_fastest_modes(dim):
+    """The fastest mode of a close packing over the two-body one, for normal springs
+    alone (fcc 2, hexagonal sqrt(3), taken as 2) and for tangential springs alone with
+    their rotational coupling (fcc sqrt(40/7), hexagonal 2: the bodies all spinning the
+    same way)."""
+    from dem.simulation import PACKING_RATIOS
+
+    rot = {2: 3.0, 3: 3.5}[dim]
+    for family, kn, kt, pair_k in (("normal", 1.0, 0.0, 1.0),
+                                   ("tangential", 0.0, 1.0, rot)):
+        mass, stiff = lattice_matrices(dim, kn, kt)
+        scaled = stiff / np.sqrt(np.outer(mass, mass))
+        omega = math.sqrt(np.linalg.eigvalsh(scaled).max())
+        ratio = omega / math.sqrt(2.0 * pair_k)  # pair: k / (m / 2)
+        expected = {("normal", 2): math.sqrt(3.0)}.get((family, dim),
+                                                       PACKING_RATIOS[family][dim])
+        assert ratio == pytest.approx(expected, rel=1e-9)
+        assert ratio <= PACKING_RATIOS[family][dim] + 1e-12
+
+
+def test_tangential_springs_of_a_close_packing_set_the_threshold():
+    """fcc spheres with sticking tangential springs kt = kn / 2 (their rotation-coupled
+    stiffness 1.75 kn sets dt_crit): the spin mode's limit is 1 / sqrt(40/7) = 0.418
+    dt_crit, below the 0.45 that normal springs alone allow. At 0.95 x the limit the
+    lattice keeps its energy; at 1.05 x (0.439 dt_crit), forced, it blows up; steps
+    are refused from 0.9 x the limit."""
+    from dem.observers import elastic_energy, kinetic_energy
+
+    law = dem.LinearSpring(kn=KN, kt=0.5 * KN, mu=10.0)
+    bodies, box = fcc_lattice()
+    probe = dem.Simulation(bodies.copy(), law, box=box)
+    limit = 1.0 / math.sqrt(40.0 / 7.0)
+    assert probe.dt_stable == pytest.approx(0.9 * limit * probe.dt_crit, rel=1e-12)
+
+    def sim(factor):
+        b, bx = fcc_lattice()
+        return dem.Simulation(b, law, box=bx, dt=factor * limit * probe.dt_crit,
+                              threads=1, allow_unstable_dt=True)
+
+    def energy(s):
+        return sum(kinetic_energy(s.bodies)) + elastic_energy(s)
+
+    stable = sim(0.95)
+    e0 = energy(stable)
+    stable.run(2000)
+    assert abs(energy(stable) - e0) < 0.2 * e0
+    with pytest.raises(dem.SimulationError):
+        sim(1.05).run(2000)
+    with pytest.raises(ValueError, match="exceeds the critical time step"):
+        dem.Simulation(bodies.copy(), law, box=box, dt=1.01 * probe.dt_stable)
 
 
 def test_dashpots_lower_the_stable_step_as_predicted():

@@ -178,14 +178,19 @@ class Law:
         """Largest normal stiffness [N/m] a contact of reference radius ``r_ref`` reaches."""
         raise NotImplementedError
 
-    def damping_ratio(self, m_eff, rot):
-        """Largest damping ratio [-] of a contact's normal and tangential modes.
+    def damping_ratios(self, m_eff, rot):
+        """Damping ratios [-] of a contact's normal and tangential modes, ``(zeta_n,
+        zeta_t)``.
 
         ``m_eff`` [kg] is the pair's effective mass, ``rot`` the rotational coupling of
         the tangential mode (``1 + m r^2 / I``): it scales that mode's stiffness and
         dashpot alike, so its ratio by ``sqrt(rot)``.
         """
         raise NotImplementedError
+
+    def damping_ratio(self, m_eff, rot):
+        """Largest damping ratio [-] of a contact's normal and tangential modes."""
+        return max(self.damping_ratios(m_eff, rot))
 
     def spec(self):
         """The law as plain data: ``{"law": class name, **constructor arguments}``;
@@ -258,11 +263,11 @@ class LinearSpring(Law):
     def critical_stiffness(self, r_ref):
         return max(self.kn, self.kt)
 
-    def damping_ratio(self, m_eff, rot):
+    def damping_ratios(self, m_eff, rot):
         zeta_n = self.zeta + self.gamma_n / (2.0 * math.sqrt(self.kn * m_eff))
         zeta_t = (self.gamma_t * math.sqrt(rot) / (2.0 * math.sqrt(self.kt * m_eff))
                   if self.kt > 0.0 else 0.0)
-        return max(zeta_n, zeta_t)
+        return zeta_n, zeta_t
 
 
 def Elastic(kn, kt, mu):
@@ -324,6 +329,7 @@ class HertzMindlin(Law):
         a = math.sqrt(r_ref * self.overlap_ref * r_ref)
         return max(2.0 * self.e_star * a, 8.0 * self.g_star * a)
 
-    def damping_ratio(self, m_eff, rot):
+    def damping_ratios(self, m_eff, rot):
         # c sqrt(S m) over 2 sqrt(S m): the same ratio at every overlap
-        return -math.sqrt(5.0 / 6.0) * self.beta * math.sqrt(rot)
+        zeta = -math.sqrt(5.0 / 6.0) * self.beta
+        return zeta, zeta * math.sqrt(rot)

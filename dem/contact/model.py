@@ -6,6 +6,8 @@ parameter table ``params[mat_i, mat_j]`` that the kernels index. A material pair
 occurs in the scene but has no law is an error at set-up, naming the pair.
 """
 
+import math
+
 import numpy as np
 
 from .laws import Law
@@ -88,27 +90,34 @@ class ContactModel:
             names = ", ".join(f"{k} materials ({a}, {b})" for k, a, b in missing)
             raise ValueError(f"no contact law for {names}")
 
-    def max_damping_ratio(self, bodies, m_min):
-        """Largest damping ratio [-] of any law's contact modes, for the lightest pair
-        (effective mass ``m_min / 2`` [kg]: the most damped)."""
-        rot = ROTATION_COUPLING[bodies.dim]
-        return max(law.damping_ratio(0.5 * m_min, rot) for bucket in ("pp", "pw")
-                   for law in self.laws[bucket].values())
-
-    def max_stiffness(self, bodies):
-        """Largest normal or rotation-coupled tangential stiffness [N/m] in the scene."""
+    def modes(self, bodies, m_min):
+        """``(family, k [N/m], zeta [-])`` of every law's normal and tangential contact
+        mode: the largest stiffness a contact reaches (the tangential one times its
+        rotational coupling) and the damping ratio for the lightest pair (effective mass
+        ``m_min / 2`` [kg]: the most damped)."""
         from ..shapes import Shape
 
         r = bodies.radius[bodies.kind != Shape.PLANE]
         r_ref = float(r.min()) if r.size else 1.0
         rot = ROTATION_COUPLING[bodies.dim]
-        k = 0.0
+        out = []
         for bucket in ("pp", "pw"):
             for law in self.laws[bucket].values():
                 kn = law.critical_stiffness(r_ref)
                 ks = law.stiffness(law_overlap(law, r_ref), r_ref, law.row())[1]
-                k = max(k, kn, rot * ks)
-        return k
+                zeta_n, zeta_t = (law.damping_ratios(0.5 * m_min, rot)
+                                  if math.isfinite(m_min) else (0.0, 0.0))
+                out += [("normal", kn, zeta_n), ("tangential", rot * ks, zeta_t)]
+        return out
+
+    def max_damping_ratio(self, bodies, m_min):
+        """Largest damping ratio [-] of any law's contact modes, for the lightest pair
+        (effective mass ``m_min / 2`` [kg]: the most damped)."""
+        return max(z for _, _, z in self.modes(bodies, m_min))
+
+    def max_stiffness(self, bodies):
+        """Largest normal or rotation-coupled tangential stiffness [N/m] in the scene."""
+        return max(k for _, k, _ in self.modes(bodies, math.inf))
 
 
 #: a tangential spring acts on translation and rotation: its mode's stiffness counts

@@ -531,7 +531,7 @@ def build_simulation(scene):
     """
     from ..contact.laws import HertzMindlin, LinearSpring
     from ..simulation import (STABLE_FACTOR, Simulation, critical_time_step,
-                              damped_stability)
+                              packing_stability)
 
     ctx = _Context(scene.get("source", "<scene>"), Path("."))
     bodies = build_bodies(scene)
@@ -551,9 +551,9 @@ def build_simulation(scene):
 
         model = ContactModel(law)
         dt_crit, m_min, _ = critical_time_step(bodies, model)
-        dt_max = STABLE_FACTOR * dt_crit * damped_stability(
-            model.max_damping_ratio(bodies, m_min) if math.isfinite(dt_crit) else 0.0,
-            s["damping"])
+        dt_max = STABLE_FACTOR * dt_crit * (packing_stability(
+            model.modes(bodies, m_min), bodies.dim, s["damping"])
+            if math.isfinite(dt_crit) else 0.5)
         if s["dt"] > dt_max:
             ctx.fail(f"dt = {_fmt(s['dt'])} s exceeds the critical time step "
                      f"{dt_max:.4g} s of a packing of these particles and [contact] law",

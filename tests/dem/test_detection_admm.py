@@ -428,6 +428,31 @@ def test_failure_is_a_status():
     assert not warm.any()
 
 
+
+def test_a_stale_warm_start_is_rescued_by_a_cold_restart():
+    """A warm row that is valid but useless (iterates 50 L away, penalty 1e-6) cannot
+    converge within a cap that a cold start needs only a few iterations under: the
+    solve restarts cold, converges to the cold answer, counts the failed attempt, and
+    leaves a good row behind (the next solve converges at once)."""
+    rng = np.random.default_rng(13)
+    row_a, row_b = box_row([1.0, 0.5, 0.3]), box_row([0.7, 0.4, 0.5])
+    geo = table(row_a, row_b).arrays()
+    pos, rot, normal = random_polytope_pair(rng, 3, row_a, row_b, 0.02)
+    cold = detect(3, (BOX, BOX), geo, pos, rot, normal)
+    assert cold[0] == 0
+    cap = cold[4] + 5
+    warm = np.zeros((1, N_WARM))
+    warm[0, :12] = 50.0
+    warm[0, 12:14] = 1e-6
+    warm[0, 14] = 1.0
+    stale = warm.copy()
+    res = detect(3, (BOX, BOX), geo, pos, rot, normal, warm, max_iter=cap)
+    assert res[0] == 0 and res[4] > cap  # the failed warm attempt is counted
+    assert abs(res[1] - cold[1]) <= 1e-7 and np.linalg.norm(res[2] - cold[2]) <= 1e-6
+    assert warm[0, 14] == 1.0 and not np.allclose(warm, stale)
+    again = detect(3, (BOX, BOX), geo, pos, rot, normal, warm, max_iter=cap)
+    assert again[0] == 0 and again[4] <= 2
+
 # --------------------------------------------------------------------------- nodes
 def test_surface_nodes_lie_on_the_surface():
     nodes = surface_nodes(lambda x: np.linalg.norm(x, axis=1) - 0.7, 50, 3, radius=0.7)

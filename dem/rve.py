@@ -49,9 +49,13 @@ from .rve_measure import measure_periodic
 from .contact.model import ContactModel
 from .simulation import (Simulation, SimulationError, critical_time_step,
                          damped_stability)
+from .shapes import Shape
 from .state import Bodies
 
 log = logging.getLogger(__name__)
+
+#: shape kinds an RVE holds besides spheres/disks
+POLYTOPES = (Shape.BOX, Shape.POLYGON, Shape.POLYHEDRON)
 
 
 class RelaxationError(SimulationError):
@@ -248,8 +252,9 @@ class RVE:
             raise TypeError("law must be a contact Law (LinearSpring, HertzMindlin)")
         if bodies.dim != cell.dim:
             raise ValueError(f"bodies are {bodies.dim}D, the cell {cell.dim}D")
-        if bodies.has_shapes or np.any(bodies.kind != 0):
-            raise ValueError("an RVE holds disks or spheres only")
+        if np.any(~np.isin(bodies.kind, POLYTOPES + (Shape.SPHERE,))):
+            raise ValueError("an RVE holds disks/spheres and polytopes (boxes, polygons, "
+                             "polyhedra) only: no walls, no user-defined shapes")
         check_settings(mass_scale, max_step_strain, tol, stress_tol, max_relax_steps,
                        check_every)
         scale_masses(bodies, mass_scale)
@@ -334,7 +339,8 @@ class RVE:
         nl = sim.neighbors
         n_c, unbalanced = measure_periodic(
             sim.model.kind("pp").code, b.pos, b.vel, b.mass, b.radius, b.mat_id,
-            nl.pairs, nl.img, sim._hmat, sim.fpair, sim._params_pp, self.volume,
+            nl.pairs, nl.img, sim._hmat, sim.fpair, sim.shaped,
+            sim.pgeom if sim.shaped else _NO_GEOMETRY, sim._params_pp, self.volume,
             bool(tangent), net, degree, sig, cmat, fabric)
         vs = solid_volume(b)
         out = {"stress": sig.copy(), "n_contacts": int(n_c),
@@ -579,12 +585,19 @@ def _expm_step(lgrad, dt, n):
     return np.linalg.matrix_power(np.eye(lgrad.shape[0]) + dt * lgrad, int(n))
 
 
+#: the contact geometry rows a sphere RVE passes (it has none)
+_NO_GEOMETRY = np.zeros((0, 7))
+
+
 def solid_volume(bodies):
-    """Volume [m^3] (area [m^2] in 2D) of the particles."""
-    r = bodies.radius[bodies.kind == 0]
-    if bodies.dim == 2:
-        return float(np.pi * (r**2).sum())
-    return float(4.0 / 3.0 * np.pi * (r**3).sum())
+    """Volume [m^3] (area [m^2] in 2D) of the particles: spheres/disks from their
+    radii, shapes as mass over density."""
+    sph = bodies.kind == Shape.SPHERE
+    r = bodies.radius[sph]
+    v = float(np.pi * (r**2).sum()) if bodies.dim == 2 else float(
+        4.0 / 3.0 * np.pi * (r**3).sum())
+    shaped = ~sph & (bodies.kind != Shape.PLANE)
+    return v + float(np.sum(bodies.mass[shaped] / bodies.density[shaped]))
 
 
 def generate(dim, n, radius, law, p0, density=2650.0, fractions=None, seed=0,

@@ -1,4 +1,5 @@
-"""Compiled homogenisation of a periodic sphere/disk packing (kernel module).
+"""Compiled homogenisation of a periodic packing of spheres/disks or level-set shapes
+(kernel module).
 
 One pass over the Verlet pairs of an RVE gives what a relaxation checks every few dozen
 steps and what a Gauss point returns: the Love-Weber stress with periodic branch
@@ -8,9 +9,12 @@ compiled twin of :func:`dem.observers.contact_summary` followed by the sums of
 :meth:`dem.rve.RVE.response`, which it replaces in the relaxation loop; the tests hold
 the two equal.
 
-A pair touches when ``r_i + r_j - |l| > 0`` with ``l = x_j - x_i + H m`` the branch
-vector across the pair's periodic image ``m``: the test of ``contact_summary``, on the
-forces of the last force evaluation (``fpair``, the force on j).
+A pair of spheres touches when ``r_i + r_j - |l| > 0`` with ``l = x_j - x_i + H m`` the
+branch vector across the pair's periodic image ``m``; a pair of shapes when the loop's
+contact geometry has a positive overlap: the tests of ``contact_summary``, on the forces
+of the last force evaluation (``fpair``, the force on j). The branch vector joins the
+centres for every shape: with it the Love-Weber sum is the static stress of rigid bodies
+of any shape in equilibrium.
 """
 
 import math
@@ -21,8 +25,8 @@ from .contact.laws import stiffness_hertz_mindlin, stiffness_linear
 
 @kernel
 def measure_periodic(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, fpair,
-                     params, volume, use_tangent, net_out, degree_out, stress_out,
-                     tangent_out, fabric_out):
+                     shaped, pgeom, params, volume, use_tangent, net_out, degree_out,
+                     stress_out, tangent_out, fabric_out):
     """Stress, tangent, fabric and unbalanced force of the touching pairs.
 
     Parameters
@@ -40,6 +44,10 @@ def measure_periodic(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, fpa
         Cell matrix [m] (columns are the cell vectors).
     fpair : (m, d) f8
         Force on j [N] of each pair at the last force evaluation.
+    shaped : bool
+        Level-set shapes: a pair touches, and has its normal, by the loop's contact
+        geometry ``pgeom`` (m, 7) (overlap, normal i->j, point) instead of the radii
+        (``radius`` is then the bounding radius, read by Hertz-Mindlin's stiffness).
     params : (n_mat, n_mat, n_p) f8
         The law's pair-parameter table.
     volume : float
@@ -78,7 +86,14 @@ def measure_periodic(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, fpa
             br[a] = la
             dist2 += la * la
         dist = math.sqrt(dist2)
-        ov = radius[i] + radius[j] - dist
+        if shaped:
+            ov = pgeom[k, 0]
+            for a in range(d):
+                nv[a] = pgeom[k, 1 + a]
+        else:
+            ov = radius[i] + radius[j] - dist
+            for a in range(d):
+                nv[a] = br[a] / dist
         if not ov > 0.0:
             continue
         n_c += 1
@@ -90,7 +105,6 @@ def measure_periodic(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, fpa
             f2 += fa * fa
             net_out[i, a] -= fa
             net_out[j, a] += fa
-            nv[a] = br[a] / dist
             for b in range(d):
                 stress_out[a, b] -= fa * br[b]
         fsum += math.sqrt(f2)

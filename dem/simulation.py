@@ -486,9 +486,6 @@ class Simulation:
     def _shape_setup(self, periodic):
         """Buckets of the scene's kinds and the loop compiled for them."""
         b = self.bodies
-        if self.cell is not None:
-            raise ValueError("a deforming PeriodicCell runs spheres and disks only; "
-                             "level-set shapes need an orthogonal Domain")
         force_admm = self.detection == "admm"
         kinds = sorted({int(k) for k in np.unique(b.kind) if k != Shape.PLANE})
         self._bucket_keys = [(ka, kb) for ka in kinds for kb in kinds if ka <= kb]
@@ -558,6 +555,7 @@ class Simulation:
             self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel, b.force, b.torque, b.radius,
             b.mass, self._inv_mass, self._inv_inertia, self._fixed, b.normal, b.mat_id,
             self._kind64, self._shape64, nl.pos_ref, self._grow(), self._hmat,
+            self._lgrad, self._cellref, self.cell is not None,
             b.table.arrays(), self.admm_tol, self.admm_max_iter,
             nl.pairs, nl.img, self._order, self._bstart, self._bucket_methods, self.touch,
             self.hist, self.warm, self.iters, self.pgeom, self.fpair, self.tpair,

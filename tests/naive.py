@@ -241,12 +241,14 @@ def momenta(pos, vel, ang_vel, mass, inertia):
 
 
 def periodic_homogenisation(pos, vel, mass, radius, hmat, pairs, img, fpair, kn, kt,
-                            volume):
+                            volume, geometry=None):
     """Love-Weber stress, eq 29 tangent, fabric and unbalanced ratio of a periodic
     packing, written out contact by contact.
 
     ``pairs``/``img`` are candidate pairs and the periodic image of j; ``fpair`` the
-    force on j; ``kn``/``kt`` scalars (a linear law). Returns a dict.
+    force on j; ``kn``/``kt`` scalars (a linear law). ``geometry``: the contact rows
+    (overlap, normal, point) of level-set shapes, which then decide touching and the
+    normal (the branch still joins the centres). Returns a dict.
     """
     n, d = pos.shape
     sig = np.zeros((d, d))
@@ -258,9 +260,14 @@ def periodic_homogenisation(pos, vel, mass, radius, hmat, pairs, img, fpair, kn,
     for k, (i, j) in enumerate(pairs):
         branch = pos[j] - pos[i] + hmat @ img[k]
         dist = np.linalg.norm(branch)
-        if radius[i] + radius[j] - dist <= 0.0:
+        if geometry is not None:
+            if geometry[k, 0] <= 0.0:
+                continue
+            nrm = geometry[k, 1:1 + d]
+        elif radius[i] + radius[j] - dist <= 0.0:
             continue
-        nrm = branch / dist
+        else:
+            nrm = branch / dist
         f = fpair[k]
         sig -= np.outer(f, branch)
         net[i] -= f

@@ -30,6 +30,7 @@ import math
 import types
 
 import numba
+import numpy as np
 
 from .._jit import kernel
 from ..shapes.table import (
@@ -45,7 +46,8 @@ from ..shapes.table import (
 from .detection.admm import admm_contact, make_admm
 from .detection.analytic import sphere_box, sphere_polytope
 from .detection.polytope import polytope_contact, polytope_plane
-from .loops import NONFINITE, OK, OVERLAP, REBUILD, _apply_law, body_force
+from .loops import (NONFINITE, OK, OVERLAP, REBUILD, _affine, _apply_law, _cell_map,
+                    _deform_cell, _strain_norm, body_force, moved2)
 
 #: detection methods
 M_SPHERES, M_SPHERE_BOX, M_SPHERE_POLY, M_POLY, M_ADMM = 0, 1, 2, 3, 4
@@ -145,21 +147,31 @@ def _kick_rotation(dim, b, half, rot, ang_vel, torque, inv_inertia):
 
 
 @kernel(inline=True)
-def _drift_rigid(b, dim, dt, half, pos, vel, rot, ang_vel, force, torque, inv_mass,
-                 inv_inertia, is_fixed):
-    """Half kick and drift of body b; zeroes its force and torque (the caller checks
-    the displacement against the neighbour list)."""
+def _drift_rigid(b, dim, deform, lgrad, dt, half, pos, vel, rot, ang_vel, force, torque,
+                 inv_mass, inv_inertia, is_fixed):
+    """Half kick and drift of body b, carried by the cell's affine field ``dt L x``
+    when ``deform`` (its orientation is not: the field moves centres only); zeroes its
+    force and torque (the caller checks the displacement against the neighbour
+    list)."""
+    ax, ay, az = _affine(dim, deform, lgrad, pos, b, dt)
     if is_fixed[b]:
         for a in range(dim):
             pos[b, a] += dt * vel[b, a]
             force[b, a] = 0.0
         for a in range(torque.shape[1]):
             torque[b, a] = 0.0
+    else:
+        for a in range(dim):
+            vel[b, a] += half * force[b, a] * inv_mass[b]
+            pos[b, a] += dt * vel[b, a]
+            force[b, a] = 0.0
+    if deform:
+        pos[b, 0] += ax
+        pos[b, 1] += ay
+        if dim == 3:
+            pos[b, 2] += az
+    if is_fixed[b]:
         return
-    for a in range(dim):
-        vel[b, a] += half * force[b, a] * inv_mass[b]
-        pos[b, a] += dt * vel[b, a]
-        force[b, a] = 0.0
     if dim == 2:
         ang_vel[b, 0] += half * torque[b, 0] * inv_inertia[b, 0]
         rot[b, 0] += dt * ang_vel[b, 0]
@@ -219,20 +231,23 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
     if key in _STEPPERS:
         return _STEPPERS[key]
     DIM, PP, PW, PERIODIC = int(dim), int(law_pp), int(law_pw), bool(periodic)
+    DEFORM = PERIODIC  # a periodic loop serves orthogonal boxes and deforming cells
     U_ADMM = int(use_admm)
     W_ADM = int(use_admm)
 
     def run_shape_steps(n_steps, prime, resume, dt, gravity, damping, skin, overlap_limit,
                         pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass,
                         inv_inertia, is_fixed, normal, mat_id, kind, shape, pos_ref, grow,
-                        hmat, geo, tol, max_iter,
+                        hmat, lgrad, cellref, is_cell, geo, tol, max_iter,
                         pairs, img, order, bstart, bmethod, touch, hist, warm, iters,
                         pgeom, fpair, tpair, inc_start, inc_list, params_pp,
                         wpairs, worder, wbstart, wbmethod, whist, wwarm, witers, wgeom,
                         wforce, wtorque, winc_start, winc_list, params_pw,
                         status_out, work_out):
         """Advance ``n_steps``; returns the number of completed steps (see
-        :func:`dem.contact.loops.stepper` for ``prime``/``resume``/status)."""
+        :func:`dem.contact.loops.stepper` for ``prime``/``resume``/status and for the
+        deforming cell: ``hmat`` advanced by ``lgrad``, ``cellref[0]`` = H^-1 at the
+        Verlet build, ``is_cell``)."""
         n = pos.shape[0]
         status_out[0] = OK
         status_out[3] = 0
@@ -241,18 +256,27 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
         hdt = 0.0 if prime else dt
         kick = not prime
         n_iter = 1 if prime else n_steps
+        # a deforming cell: fmap = H H_build^-1 maps the positions of the Verlet build
+        # affinely to now; a pair's distance can change by its strain times at most
+        # 2 r_max + skin on top of the bodies' own motion
+        fmap = np.eye(DIM)
+        rmax = 0.0
+        if DEFORM and is_cell:
+            for b in range(n):
+                rmax = max(rmax, radius[b])
+            _cell_map(hmat, cellref[0], fmap)
         for it in range(n_iter):
             if not prime and not (resume and it == 0):
+                if DEFORM and is_cell:  # the cell follows the affine field: H += dt L H
+                    _deform_cell(hmat, lgrad, dt)
+                    _cell_map(hmat, cellref[0], fmap)
                 for b in numba.prange(n):
-                    _drift_rigid(b, DIM, dt, half, pos, vel, rot, ang_vel, force, torque,
-                                 inv_mass, inv_inertia, is_fixed)
+                    _drift_rigid(b, DIM, DEFORM, lgrad, dt, half, pos, vel, rot, ang_vel,
+                                 force, torque, inv_mass, inv_inertia, is_fixed)
                 maxd2 = 0.0
                 n_bad = 0
                 for b in numba.prange(n):
-                    s2 = 0.0
-                    for a in range(DIM):
-                        dx = pos[b, a] - pos_ref[b, a]
-                        s2 += dx * dx
+                    s2 = moved2(DIM, DEFORM, pos, pos_ref, b, fmap)
                     if not math.isfinite(s2):
                         n_bad += 1
                     maxd2 = max(maxd2, s2)
@@ -260,7 +284,8 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                     status_out[0] = NONFINITE
                     status_out[1] = -1
                     return done
-                if 2.0 * (math.sqrt(maxd2) + grow) > skin:
+                strain = _strain_norm(fmap) if DEFORM else 0.0
+                if 2.0 * (math.sqrt(maxd2) + grow) + strain * (2.0 * rmax + skin) > skin:
                     status_out[0] = REBUILD
                     return done
             else:
@@ -295,10 +320,10 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                     else:
                         ov, nx, ny, nz, cx, cy, cz = pair_exact(
                             DIM, meth, a, b, sx, sy, sz, pos, rot, radius, shape, geo)
-                    pair_force(DIM, PP, k, i, j, a, b, swap, sx, sy, sz, ov, nx, ny, nz,
-                               cx, cy, cz, pos, vel, ang_vel, radius, inv_mass, mat_id,
-                               params_pp, hist, touch, fpair, tpair, pgeom, hdt,
-                               overlap_limit, status_out)
+                    pair_force(DIM, PP, DEFORM, lgrad, k, i, j, a, b, swap, sx, sy, sz,
+                               ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel, radius,
+                               inv_mass, mat_id, params_pp, hist, touch, fpair, tpair,
+                               pgeom, hdt, overlap_limit, status_out)
             # ---- 4. wall buckets: body i against wall w (home body: i)
             work = 0.0
             for bi in range(wbmethod.shape[0]):
@@ -448,11 +473,13 @@ def wall_exact(dim, meth, i, w, pos, rot, radius, normal, shape, geo):
 
 
 @kernel
-def pair_force(dim, code, k, i, j, a, b, swap, sx, sy, sz, ov, nx, ny, nz, cx, cy, cz,
-               pos, vel, ang_vel, radius, inv_mass, mat_id, params, hist, touch, fpair,
-               tpair, pgeom, dt, overlap_limit, status_out):
+def pair_force(dim, code, deform, lgrad, k, i, j, a, b, swap, sx, sy, sz, ov, nx, ny, nz,
+               cx, cy, cz, pos, vel, ang_vel, radius, inv_mass, mat_id, params, hist,
+               touch, fpair, tpair, pgeom, dt, overlap_limit, status_out):
     """Law and rows of pair k (bodies i < j; A = a, B = b + shift): force on j in
-    ``fpair[k]``, torques on i and j in ``tpair[k]``, geometry in ``pgeom[k]``."""
+    ``fpair[k]``, torques on i and j in ``tpair[k]``, geometry in ``pgeom[k]``. In a
+    deforming cell (``deform``) the bodies' velocities are fluctuations about the
+    affine field ``L x``, whose difference across the branch vector is added."""
     nr = tpair.shape[1] // 2
     if ov <= 0.0:
         if touch[k]:  # the contact opened: its history ends
@@ -482,8 +509,19 @@ def pair_force(dim, code, k, i, j, a, b, swap, sx, sy, sz, ov, nx, ny, nz, cx, c
     r_eff = ra * rb / (ra + rb)
     im = inv_mass[a] + inv_mass[b]
     m_eff = 1.0 / im if im > 0.0 else 0.0  # two fixed bodies: no dashpot
-    fx, fy, fz = _apply_law(code, ov, nx, ny, nz, vbx - vax, vby - vay, vbz - vaz, r_eff,
-                            m_eff, params, mat_id[a], mat_id[b], hist, k, dt)
+    rvx, rvy, rvz = vbx - vax, vby - vay, vbz - vaz
+    if deform:
+        lx = pos[b, 0] + sx - pos[a, 0]
+        ly = pos[b, 1] + sy - pos[a, 1]
+        rvx += lgrad[0, 0] * lx + lgrad[0, 1] * ly
+        rvy += lgrad[1, 0] * lx + lgrad[1, 1] * ly
+        if dim == 3:
+            lz = pos[b, 2] + sz - pos[a, 2]
+            rvx += lgrad[0, 2] * lz
+            rvy += lgrad[1, 2] * lz
+            rvz += lgrad[2, 0] * lx + lgrad[2, 1] * ly + lgrad[2, 2] * lz
+    fx, fy, fz = _apply_law(code, ov, nx, ny, nz, rvx, rvy, rvz, r_eff, m_eff, params,
+                            mat_id[a], mat_id[b], hist, k, dt)
     sgn = -1.0 if swap else 1.0  # rows are in (i, j) orientation
     fpair[k, 0] = sgn * fx
     fpair[k, 1] = sgn * fy

@@ -1,5 +1,6 @@
 """The deformable periodic cell: affine motion, images through the cell matrix,
-unlimited shear, the affine velocity inside contacts, threads and restart."""
+unlimited shear, the affine velocity inside contacts, threads and restart; spheres and
+level-set shapes (boxes, polygons, polyhedra) alike."""
 
 import naive
 import numba
@@ -101,6 +102,68 @@ def test_shear_loads_the_tangential_spring_through_the_affine_velocity(across):
     assert f_t == pytest.approx(kt * rate * branch * n * dt, rel=2e-3)
 
 
+
+def _shapes(dim, pos, half, density, rot=None):
+    b = dem.Bodies.spheres(np.zeros((0, dim)), radius=0.1, density=1.0)
+    b.add_shapes(dem.Box(half), pos, density=density, rot=rot)
+    return b
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_free_shapes_keep_their_place_and_orientation_in_the_deforming_lattice(dim):
+    """Boxes that do not touch, in any orientation, follow x -> F x exactly, through
+    changes of lattice basis; the affine field moves centres, not orientations."""
+    side = 4
+    cell = PeriodicCell(np.full(dim, side * 1.0))
+    pos0 = _grid(dim, side, 1.0)
+    rng = np.random.default_rng(8)
+    if dim == 2:
+        rot = rng.uniform(0.0, np.pi, len(pos0))
+    else:
+        rot = rng.normal(size=(len(pos0), 4))
+        rot /= np.linalg.norm(rot, axis=1, keepdims=True)
+    bodies = _shapes(dim, pos0.copy(), [0.2, 0.1, 0.15][:dim], 1000.0, rot)
+    rot0 = bodies.rot.copy()
+    sim = dem.Simulation(bodies, dem.LinearSpring(kn=1e4), box=cell, dt=1e-3)
+    lgrad = rng.uniform(-0.4, 0.4, (dim, dim))
+    lgrad[0, 1] = 1.5
+    cell.lgrad[:] = lgrad
+    n = 2000
+    sim.run(n)
+    fmap = np.linalg.matrix_power(np.eye(dim) + 1e-3 * lgrad, n)
+    assert cell.n_reductions >= 1
+    assert _lattice_residual(cell.h, bodies.pos - pos0 @ fmap.T) < 1e-11
+    assert _lattice_residual(cell.h, (fmap * side).T) < 1e-11
+    assert np.all(bodies.vel == 0.0) and np.all(bodies.ang_vel == 0.0)
+    assert np.allclose(bodies.rot, rot0, rtol=0.0, atol=1e-15)
+
+
+@pytest.mark.parametrize("across", [False, True])
+def test_shear_loads_the_tangential_spring_of_two_squares_through_the_affine_velocity(
+        across):
+    """Two heavy squares, a small one on a large one, sheared: the tangential force
+    grows as kt gamma-dot |l| t, inside the cell or through its boundary, as for
+    disks."""
+    cell = PeriodicCell([1.0, 1.0])
+    h, ov = 0.1, 1e-3  # half sides 0.1 (below) and 0.5 h (on top)
+    y0 = 0.95 if across else 0.4
+    yj = (y0 + 1.5 * h - ov) % 1.0
+    bodies = dem.Bodies.spheres(np.zeros((0, 2)), radius=0.1, density=1.0)
+    bodies.add_shapes(dem.Box([h, h]), np.array([[0.5, y0]]), density=1e9)
+    bodies.add_shapes(dem.Box([0.5 * h, 0.5 * h]), np.array([[0.5, yj]]), density=1e9)
+    kt, rate, dt, n = 2e3, 1e-2, 1e-4, 500
+    sim = dem.Simulation(bodies, dem.LinearSpring(kn=1e4, kt=kt, mu=10.0), box=cell,
+                         dt=dt)
+    cell.lgrad[0, 1] = rate
+    sim.run(n)
+    c = sim.contacts()
+    assert c["i"].size == 1
+    f, n_ = c["force"][0], c["normal"][0]
+    f_t = np.linalg.norm(f - (f @ n_) * n_)
+    assert f_t == pytest.approx(kt * rate * (1.5 * h - ov) * n * dt, rel=2e-3)
+    assert abs(f @ n_) == pytest.approx(1e4 * ov, rel=2e-3)
+    assert abs(n_[1]) == pytest.approx(1.0, abs=1e-6)
+
 def test_thread_count_does_not_change_a_deforming_run():
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("needs NUMBA_NUM_THREADS >= 2 to compare 1 and 2 threads")
@@ -147,10 +210,6 @@ def test_cell_refuses_what_it_cannot_run():
                          neighbor_backend="kdtree")
     with pytest.raises(ValueError, match="orthogonal"):
         sim.run(1)
-    b = dem.Bodies.spheres(np.zeros((0, 2)), radius=0.1, density=1.0)
-    b.add_shapes(dem.Box([0.1, 0.1]), np.array([[0.5, 0.5]]), density=1.0)
-    with pytest.raises(ValueError, match="spheres and disks only"):
-        dem.Simulation(b, dem.LinearSpring(kn=1.0), box=cell, dt=1e-3)
     small = dem.Bodies.spheres(np.array([[0.5, 0.5]]), radius=0.3, density=1.0)
     sim = dem.Simulation(small, dem.LinearSpring(kn=1.0), box=cell, dt=1e-3)
     with pytest.raises(ValueError, match="less than twice the neighbour cut-off"):

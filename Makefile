@@ -47,7 +47,7 @@ test-rest: $(STAMP)
 test-mpi: $(STAMP)
 	NUMBA_NUM_THREADS=1 $(BIN)/mpiexec -n 2 $(BIN)/python -m mpi4py -m pytest -q -p no:cacheprovider tests/mpi
 
-# Every page of docs/ as written, the long commands included (tens of minutes).
+# Every page of docs/ as written, the long commands included (about 30 minutes).
 docs-walk: $(STAMP)
 	$(PYTEST) tests/test_tutorial.py tests/test_doc_pages.py tests/walk/walk_docs.py
 

@@ -1,7 +1,7 @@
 """Running the documentation as written.
 
 A page's fenced blocks run in page order in one scratch directory that holds copies of
-``examples/`` and ``benchmarks/`` and a ``.venv`` link to the running interpreter's
+``examples/``, ``benchmarks/`` and ``tests/`` and a ``.venv`` link to the running interpreter's
 environment, with that environment's commands first on the ``PATH``:
 
 - ``python`` blocks: ``python -c`` the block;
@@ -117,12 +117,15 @@ def _environment(cwd):
 
 
 def scratch(cwd, page):
-    """Fill ``cwd`` for ``page``: examples, benchmarks, the venv link, named files, the
-    Makefile and an ``srun`` that starts two ranks with the venv's ``mpiexec``."""
+    """Fill ``cwd`` for ``page``: examples, benchmarks, tests, the venv link, named
+    files, the Makefile and an ``srun`` that starts two ranks with the venv's
+    ``mpiexec``."""
     shutil.copytree(ROOT / "examples", cwd / "examples")
     shutil.copytree(ROOT / "benchmarks", cwd / "benchmarks",
                     ignore=shutil.ignore_patterns("results", "__pycache__"))
     (cwd / "benchmarks" / "results").mkdir()
+    shutil.copytree(ROOT / "tests", cwd / "tests",
+                    ignore=shutil.ignore_patterns("__pycache__"))
     for name in ("Makefile", "pyproject.toml"):
         shutil.copy2(ROOT / name, cwd / name)
     (cwd / ".venv").symlink_to(Path(sys.executable).parent.parent)

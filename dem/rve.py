@@ -600,8 +600,30 @@ def solid_volume(bodies):
     return v + float(np.sum(bodies.mass[shaped] / bodies.density[shaped]))
 
 
+def shape_bodies(dim, pos, radii, shape, density, seed=0):
+    """Bodies of ``shape(r, rng)`` (see :func:`generate`) at ``pos`` (n, d), one per
+    radius, at random orientations drawn, with the shapes, from ``seed``."""
+    rng = np.random.default_rng([int(seed), 1])  # a stream apart from the cloud's
+    bodies = Bodies.empty(dim)
+    for r, x in zip(radii, pos, strict=True):
+        sh = shape(float(r), rng)
+        if getattr(sh, "dim", dim) != dim or not hasattr(sh, "bounding_radius"):
+            raise ValueError(f"shape(r, rng) must return a {dim}D polytope, got {sh!r}")
+        if sh.bounding_radius > r * (1.0 + 1e-9):
+            raise ValueError(f"shape(r, rng) returned a body of bounding radius "
+                             f"{sh.bounding_radius:.6g} m for r = {r:.6g} m (must be <= r)")
+        if dim == 2:
+            rot = [rng.uniform(0.0, 2.0 * np.pi)]
+        else:
+            q = rng.normal(size=4)
+            rot = (q / np.linalg.norm(q))[None]
+        bodies.add_shapes(sh, x[None], density=density, rot=rot)
+    return bodies
+
+
 def generate(dim, n, radius, law, p0, density=2650.0, fractions=None, seed=0,
-             friction=None, solid_fraction=None, progress=None, **rve_options):
+             friction=None, solid_fraction=None, progress=None, shape=None,
+             **rve_options):
     """A consolidated periodic packing, ready to load.
 
     Parameters
@@ -624,7 +646,13 @@ def generate(dim, n, radius, law, p0, density=2650.0, fractions=None, seed=0,
     friction : float, optional
         Friction during consolidation (default: the law's; 0 gives the densest).
     solid_fraction : float, optional
-        Of the initial loose cloud (default 0.4 in 2D, 0.25 in 3D).
+        Of the initial loose cloud (default 0.4 in 2D, 0.25 in 3D), counted with the
+        particles' bounding radii.
+    shape : callable, optional
+        ``shape(r, rng)``: a polytope (``Box``, ``ConvexPolygon``, ``ConvexPolyhedron``)
+        of bounding radius at most ``r`` [m], asked for each particle's radius with the
+        packing's random generator; each goes in at a random orientation. Default:
+        disks/spheres.
     **rve_options
         Passed to :class:`RVE`.
 
@@ -644,7 +672,10 @@ def generate(dim, n, radius, law, p0, density=2650.0, fractions=None, seed=0,
                 f"{1e3 * p0 * float(np.mean(radii)) ** (dim - 2):.3g} N/m suits this p0")
     phi = solid_fraction or (0.4 if dim == 2 else 0.25)
     cell, pos = loose_cloud(dim, radii, phi, seed)
-    bodies = Bodies.spheres(pos, radius=radii, density=density)
+    if shape is None:
+        bodies = Bodies.spheres(pos, radius=radii, density=density)
+    else:
+        bodies = shape_bodies(dim, pos, radii, shape, density, seed)
     rve = RVE(bodies, law, cell, **rve_options)
     t0 = time.perf_counter()
     rve.consolidate(p0, friction=friction, progress=progress)

@@ -217,14 +217,11 @@ def moved2(dim, deform, pos, ref, b, fmap):
 
 
 @kernel(inline=True)
-def _drift_body(b, dim, deform, dt, half, pos, vel, rot, ang_vel, force, torque,
-                inv_mass, inv_inertia, is_fixed, pos_inner, lgrad, fmap):
-    """Half kick and drift of body b (fixed bodies: drift at their velocity), carried
-    by the cell's affine field when ``deform``.
-
-    Zeroes b's force and torque: the contact loops add into them. Returns the squared
-    displacement [m^2] since the inner list was made (beyond the affine map ``fmap``).
-    """
+def _drift_centre(b, dim, deform, lgrad, dt, half, pos, vel, force, torque, inv_mass,
+                  is_fixed):
+    """The translational half kick and drift of body b (fixed bodies: drift at their
+    velocity; its torque zeroed too), carried by the cell's affine field ``dt L x``
+    when ``deform``; zeroes its force."""
     ax, ay, az = _affine(dim, deform, lgrad, pos, b, dt)
     if is_fixed[b]:
         for a in range(dim):
@@ -242,6 +239,19 @@ def _drift_body(b, dim, deform, dt, half, pos, vel, rot, ang_vel, force, torque,
         pos[b, 1] += ay
         if dim == 3:
             pos[b, 2] += az
+
+
+@kernel(inline=True)
+def _drift_body(b, dim, deform, dt, half, pos, vel, rot, ang_vel, force, torque,
+                inv_mass, inv_inertia, is_fixed, pos_inner, lgrad, fmap):
+    """Half kick and drift of body b (fixed bodies: drift at their velocity), carried
+    by the cell's affine field when ``deform``.
+
+    Zeroes b's force and torque: the contact loops add into them. Returns the squared
+    displacement [m^2] since the inner list was made (beyond the affine map ``fmap``).
+    """
+    _drift_centre(b, dim, deform, lgrad, dt, half, pos, vel, force, torque, inv_mass,
+                  is_fixed)
     s2 = moved2(dim, deform, pos, pos_inner, b, fmap)
     if is_fixed[b]:
         return s2

@@ -46,8 +46,8 @@ from ..shapes.table import (
 from .detection.admm import admm_contact, make_admm
 from .detection.analytic import sphere_box, sphere_polytope
 from .detection.polytope import polytope_contact, polytope_plane
-from .loops import (NONFINITE, OK, OVERLAP, REBUILD, _affine, _apply_law, _cell_map,
-                    _deform_cell, _strain_norm, body_force, moved2)
+from .loops import (NONFINITE, OK, OVERLAP, REBUILD, _apply_law, _cell_map, _deform_cell,
+                    _drift_centre, _strain_norm, body_force, moved2)
 
 #: detection methods
 M_SPHERES, M_SPHERE_BOX, M_SPHERE_POLY, M_POLY, M_ADMM = 0, 1, 2, 3, 4
@@ -153,23 +153,8 @@ def _drift_rigid(b, dim, deform, lgrad, dt, half, pos, vel, rot, ang_vel, force,
     when ``deform`` (its orientation is not: the field moves centres only); zeroes its
     force and torque (the caller checks the displacement against the neighbour
     list)."""
-    ax, ay, az = _affine(dim, deform, lgrad, pos, b, dt)
-    if is_fixed[b]:
-        for a in range(dim):
-            pos[b, a] += dt * vel[b, a]
-            force[b, a] = 0.0
-        for a in range(torque.shape[1]):
-            torque[b, a] = 0.0
-    else:
-        for a in range(dim):
-            vel[b, a] += half * force[b, a] * inv_mass[b]
-            pos[b, a] += dt * vel[b, a]
-            force[b, a] = 0.0
-    if deform:
-        pos[b, 0] += ax
-        pos[b, 1] += ay
-        if dim == 3:
-            pos[b, 2] += az
+    _drift_centre(b, dim, deform, lgrad, dt, half, pos, vel, force, torque, inv_mass,
+                  is_fixed)
     if is_fixed[b]:
         return
     if dim == 2:

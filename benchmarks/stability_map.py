@@ -11,7 +11,9 @@ a. **DEM spheres, explicit integration.** Precompressed periodic lattices (36 di
    also the energy of its motion: it starts at rest positions). Failed: a
    :class:`dem.SimulationError` or an error above 1. Each lattice's own Verlet limit
    ``2 / omega_max``, from the eigenvalues of its contact stiffness matrix, is drawn
-   for comparison.
+   for comparison, and the step the engine refuses from. A third lattice, fcc with
+   sticking tangential springs ``kt = kn / 2`` and random spins, crosses the spin
+   mode's line (``1 / sqrt(40/7)`` of dt_crit).
 b. **DEM polyhedra.** Two random convex polyhedra, spinning, colliding edge on edge
    (the conserving scene of ``tests/dem/test_shape_dynamics.py``), ``T = 400 dt_crit``.
 c. **Peridynamics.** A free LPS plate (60 points, the energy test of
@@ -64,7 +66,7 @@ from dem.observers import elastic_energy, kinetic_energy
 OUT = REPO / "benchmarks" / "results" / "stability_map.json"
 PNG = REPO / "docs" / "figures" / "stability_map.png"
 
-FULL_GRID = [0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.5, 0.55, 0.6, 0.625, 0.65, 0.675, 0.7,
+FULL_GRID = [0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.44, 0.5, 0.55, 0.6, 0.625, 0.65, 0.675, 0.7,
              0.75, 0.8, 0.9, 0.95, 1.0, 1.05, 1.1, 1.25, 1.5]
 QUICK_GRID = [0.02, 0.1, 0.3, 0.5, 0.6, 0.65, 0.7, 0.8, 1.0, 1.05, 1.5]
 N_SAMPLES = 50  # energy samples per run
@@ -161,27 +163,47 @@ def threshold(rows):
     return ok, None
 
 
+def spun_lattice(side, seed=0):
+    """The fcc lattice with random spins as well (small against the overlap)."""
+    bodies, box = lattice("fcc", side, seed)
+    rng = np.random.default_rng(seed + 1)
+    omega = math.sqrt(KN / bodies.mass[0])
+    bodies.ang_vel[:] = rng.normal(0.0, 1.0, bodies.ang_vel.shape) * 0.25 * SQUEEZE * omega
+    return bodies, box
+
+
 def sphere_panel(grid):
-    law = dem.LinearSpring(kn=KN)
+    normal = dem.LinearSpring(kn=KN)
+    # sticking tangential springs kt = kn / 2: their rotation-coupled 1.75 kn sets
+    # dt_crit, and the lattice's fastest mode is every sphere spinning the same way,
+    # sqrt(40/7) times the two-body frequency (tests/test_stability.py)
+    tangential = dem.LinearSpring(kn=KN, kt=0.5 * KN, mu=10.0)
 
     def energy(sim):
         e = sum(kinetic_energy(sim.bodies)) + elastic_energy(sim)
         return e, sum(kinetic_energy(sim.bodies)) if sim.step == 0 else None
 
+    cases = {"hex": (lambda: lattice("hex", 6), normal, None),
+             "fcc": (lambda: lattice("fcc", 2), normal, None),
+             "fcc, kt = kn/2": (lambda: spun_lattice(2), tangential,
+                                1.0 / math.sqrt(40.0 / 7.0))}
     out = {}
-    for kind, side in (("hex", 6), ("fcc", 2)):
-        bodies, box = lattice(kind, side)
-        dt_crit = dem.Simulation(bodies.copy(), law, box=box, dt=1e-9).dt_crit
+    for kind, (build, law, limit) in cases.items():
+        bodies, box = build()
+        probe = dem.Simulation(bodies.copy(), law, box=box, dt=1e-9)
+        dt_crit = probe.dt_crit
 
-        def make(f, kind=kind, side=side, dt_crit=dt_crit):
-            b, bx = lattice(kind, side)
+        def make(f, build=build, law=law, dt_crit=dt_crit):
+            b, bx = build()
             return dem.Simulation(b, law, box=bx, dt=f * dt_crit, threads=1,
                                   allow_unstable_dt=True)
 
         rows = energy_run(make, grid, 100.0, _first_kinetic(energy))
         ok, bad = threshold(rows)
         out[kind] = {"n": bodies.n, "dim": bodies.dim, "dt_crit": dt_crit,
-                     "verlet_limit": verlet_limit(bodies, box, KN) / dt_crit,
+                     "verlet_limit": (verlet_limit(bodies, box, KN) / dt_crit
+                                      if limit is None else limit),
+                     "refused_from": probe.dt_stable / dt_crit,
                      "rows": rows, "stable_up_to": ok, "fails_at": bad}
         log(f"spheres {kind}: stable to {ok}, fails at {bad}, lattice limit "
             f"{out[kind]['verlet_limit']:.3f}")
@@ -233,8 +255,9 @@ def polyhedra_panel(grid):
     rows = energy_run(make, grid, 400.0, _first_kinetic(energy))
     ok, bad = threshold(rows)
     log(f"polyhedra: stable to {ok}, fails at {bad}")
-    return {"dt_crit": make(1.0).dt_crit, "rows": rows, "stable_up_to": ok,
-            "fails_at": bad}
+    probe = make(1.0)
+    return {"dt_crit": probe.dt_crit, "refused_from": probe.dt_stable / probe.dt_crit,
+            "rows": rows, "stable_up_to": ok, "fails_at": bad}
 
 
 # --------------------------------------------------------------------------- c. PD
@@ -507,13 +530,14 @@ def visualize(res):
     for kind, d in res["spheres"].items():
         _energy_curve(ax, d["rows"], f"{kind} ({d['dim']}D, {d['n']})")
         ax.axvline(d["verlet_limit"], ls=":", color=ax.lines[-1].get_color(), lw=1)
-    _energy_axes(ax, "a. DEM spheres (dotted: lattice's 2/omega_max)")
+        ax.axvline(d["refused_from"], ls="--", color=ax.lines[-1].get_color(), lw=0.8)
+    _energy_axes(ax, "a. DEM spheres (dotted: lattice's 2/omega_max; dashed: refused from)")
     ax = axes[0, 1]
     _energy_curve(ax, res["polyhedra"]["rows"], "polyhedra, edge on edge")
-    _energy_axes(ax, "b. DEM polyhedra")
+    _energy_axes(ax, "b. DEM polyhedra", res["polyhedra"].get("refused_from"))
     ax = axes[0, 2]
     _energy_curve(ax, res["peridynamics"]["rows"], "LPS plate (60 points)")
-    _energy_axes(ax, "c. Peridynamics")
+    _energy_axes(ax, "c. Peridynamics", 1.0)
 
     ax = axes[1, 0]
     rv = res["rve"]
@@ -581,10 +605,13 @@ def _energy_curve(ax, rows, label):
         ax.plot(*zip(*bad, strict=True), "x", color=line.get_color(), ms=9, mew=2)
 
 
-def _energy_axes(ax, title):
+def _energy_axes(ax, title, refused=None):
     ax.axhline(FAIL, color="k", lw=1, ls="--")
-    ax.axvline(1.0, color="r", lw=1)
-    ax.set_xlabel("dt / dt_crit (red: refused above without allow_unstable_dt)")
+    if refused is not None:
+        ax.axvline(refused, color="r", lw=1)
+        ax.set_xlabel("dt / dt_crit (red: refused above without allow_unstable_dt)")
+    else:
+        ax.set_xlabel("dt / dt_crit")
     ax.set_ylabel("max |E - E0| / K0 (x: SimulationError)")
     ax.set_title(title)
     ax.legend(fontsize=7)

@@ -55,7 +55,7 @@ PACKING_FREQUENCY_RATIO = 2.0
 #: its contacts at once, sqrt(40/7) in 3D (fcc: 16 kt r^2 against I = 0.4 m r^2, where
 #: the pair has 7 kt / m) and 2 in 2D (hexagonal: 12 kt r^2 against 0.5 m r^2 and
 #: 6 kt / m); the lattices' stiffness matrices give the same (tests/test_stability.py)
-PACKING_RATIOS = {"normal": {2: 2.0, 3: 2.0},
+PACKING_RATIOS = {"normal": {2: PACKING_FREQUENCY_RATIO, 3: PACKING_FREQUENCY_RATIO},
                   "tangential": {2: 2.0, 3: math.sqrt(40.0 / 7.0)}}
 
 
@@ -107,6 +107,17 @@ def packing_stability(modes, dim, local_damping=0.0):
         limit = min(limit, (math.sqrt(1.0 + z * z) - z)
                     / (ratio * scale * math.sqrt(k / k_max)))
     return limit
+
+
+def stable_time_step(bodies, model, local_damping=0.0):
+    """The largest step a scene accepts, ``STABLE_FACTOR`` x :func:`packing_stability`
+    x ``dt_crit`` [s] (infinite without free bodies). Returns ``(dt_stable, fraction,
+    dt_crit, m_min, k_max)``, ``fraction`` the close packing's limit over ``dt_crit``."""
+    dt_crit, m_min, k_max = critical_time_step(bodies, model)
+    if not math.isfinite(dt_crit):
+        return math.inf, 0.5, dt_crit, m_min, k_max
+    fraction = packing_stability(model.modes(bodies, m_min), bodies.dim, local_damping)
+    return STABLE_FACTOR * fraction * dt_crit, fraction, dt_crit, m_min, k_max
 
 
 class SimulationError(RuntimeError):
@@ -193,16 +204,14 @@ class Simulation:
         self.model = model
         self.dim = bodies.dim
         model.check(bodies)
-        self.dt_crit, m_min, k_max = critical_time_step(bodies, model)
         if not 0.0 <= damping < 1.0:
             raise ValueError(f"damping must be in [0, 1), got {damping}")
+        #: the largest step accepted: STABLE_FACTOR x a close packing's limit
+        self.dt_stable, factor, self.dt_crit, m_min, k_max = stable_time_step(
+            bodies, model, damping)
         #: largest damping ratio of the contact modes (dashpots lower the stable step)
         self.damping_ratio = (model.max_damping_ratio(bodies, m_min)
                               if math.isfinite(self.dt_crit) else 0.0)
-        factor = (packing_stability(model.modes(bodies, m_min), self.dim, damping)
-                  if math.isfinite(self.dt_crit) else 0.5)
-        #: the largest step accepted: STABLE_FACTOR x a close packing's limit
-        self.dt_stable = STABLE_FACTOR * factor * self.dt_crit
         if dt is None:
             if not math.isfinite(self.dt_crit):
                 raise ValueError("dt must be given for a scene without free spheres")

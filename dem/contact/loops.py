@@ -479,6 +479,19 @@ def _cell_map(hmat, href_inv, fmap_out):
 
 
 @kernel(inline=True)
+def _cell_start(deform, radius, hmat, href_inv, fmap):
+    """At the start of a call in a deforming cell: ``fmap = H H_ref^-1`` and the
+    largest radius (a pair's distance changes by its strain times at most 2 r_max +
+    skin beyond the bodies' own motion); else leaves ``fmap`` and returns 0."""
+    rmax = 0.0
+    if deform:
+        for b in range(radius.shape[0]):
+            rmax = max(rmax, radius[b])
+        _cell_map(hmat, href_inv, fmap)
+    return rmax
+
+
+@kernel(inline=True)
 def _strain_norm(fmap):
     """Frobenius norm of fmap - I: bounds the relative length change of any vector."""
     d = fmap.shape[0]
@@ -537,14 +550,9 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
         kick = not prime
         n_iter = 1 if prime else n_steps
         # a deforming cell: fmap = H H_inner^-1 maps the positions of the inner
-        # list's making affinely to now; a pair's distance can change by its
-        # strain times at most 2 r_max + skin on top of the bodies' own motion
+        # list's making affinely to now
         fmap = np.eye(DIM)
-        rmax = 0.0
-        if DEFORM and is_cell:
-            for b in range(n):
-                rmax = max(rmax, radius[b])
-            _cell_map(hmat, cellref[1], fmap)
+        rmax = _cell_start(DEFORM and is_cell, radius, hmat, cellref[1], fmap)
         for it in range(n_iter):
             if not prime and not (resume and it == 0):
                 if DEFORM and is_cell:  # the cell follows the affine field: H += dt L H

@@ -46,8 +46,9 @@ from ..shapes.table import (
 from .detection.admm import admm_contact, make_admm
 from .detection.analytic import sphere_box, sphere_polytope
 from .detection.polytope import polytope_contact, polytope_plane
-from .loops import (NONFINITE, OK, OVERLAP, REBUILD, _apply_law, _cell_map, _deform_cell,
-                    _drift_centre, _strain_norm, body_force, moved2)
+from .loops import (NONFINITE, OK, OVERLAP, REBUILD, _apply_law, _cell_map,
+                    _cell_start, _deform_cell, _drift_centre, _strain_norm, body_force,
+                    moved2)
 
 #: detection methods
 M_SPHERES, M_SPHERE_BOX, M_SPHERE_POLY, M_POLY, M_ADMM = 0, 1, 2, 3, 4
@@ -242,14 +243,9 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
         kick = not prime
         n_iter = 1 if prime else n_steps
         # a deforming cell: fmap = H H_build^-1 maps the positions of the Verlet build
-        # affinely to now; a pair's distance can change by its strain times at most
-        # 2 r_max + skin on top of the bodies' own motion
+        # affinely to now
         fmap = np.eye(DIM)
-        rmax = 0.0
-        if DEFORM and is_cell:
-            for b in range(n):
-                rmax = max(rmax, radius[b])
-            _cell_map(hmat, cellref[0], fmap)
+        rmax = _cell_start(DEFORM and is_cell, radius, hmat, cellref[0], fmap)
         for it in range(n_iter):
             if not prime and not (resume and it == 0):
                 if DEFORM and is_cell:  # the cell follows the affine field: H += dt L H

@@ -530,8 +530,7 @@ def build_simulation(scene):
         The ``[output]`` section with the directory and HDF5 file resolved.
     """
     from ..contact.laws import HertzMindlin, LinearSpring
-    from ..simulation import (STABLE_FACTOR, Simulation, critical_time_step,
-                              packing_stability)
+    from ..simulation import Simulation, stable_time_step
 
     ctx = _Context(scene.get("source", "<scene>"), Path("."))
     bodies = build_bodies(scene)
@@ -549,11 +548,7 @@ def build_simulation(scene):
     if s["dt"] is not None:
         from ..contact.model import ContactModel
 
-        model = ContactModel(law)
-        dt_crit, m_min, _ = critical_time_step(bodies, model)
-        dt_max = STABLE_FACTOR * dt_crit * (packing_stability(
-            model.modes(bodies, m_min), bodies.dim, s["damping"])
-            if math.isfinite(dt_crit) else 0.5)
+        dt_max = stable_time_step(bodies, ContactModel(law), s["damping"])[0]
         if s["dt"] > dt_max:
             ctx.fail(f"dt = {_fmt(s['dt'])} s exceeds the critical time step "
                      f"{dt_max:.4g} s of a packing of these particles and [contact] law",

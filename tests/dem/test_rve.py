@@ -123,10 +123,13 @@ def test_saved_rve_loads_and_continues_bit_for_bit(packing, tmp_path):
     packing.restore(snap)
 
 
-def test_compiled_response_equals_the_contact_by_contact_sums(packing):
+@pytest.mark.parametrize("name", ["packing", "polygon_packing"])
+def test_compiled_response_equals_the_contact_by_contact_sums(name, request):
     """The relaxation's compiled pass (stress, eq 29 tangent, fabric, unbalanced force)
     equals the sums written out contact by contact, mid-load in a sheared cell with
-    moving particles (kinetic stress) and contacts across periodic images."""
+    moving particles (kinetic stress) and contacts across periodic images; for
+    polygons from the loop's contact rows (branch vectors between centres)."""
+    packing = request.getfixturevalue(name)
     snap = packing.snapshot()
     sim = packing.sim
     packing.cell.lgrad[:] = [[-20.0, 35.0], [0.0, 10.0]]  # [1/s]: shear and stretch
@@ -134,9 +137,10 @@ def test_compiled_response_equals_the_contact_by_contact_sums(packing):
     packing.cell.lgrad[:] = 0.0
     out = packing.response()
     b, nl = sim.bodies, sim.neighbors
+    geometry = sim.pgeom if sim.shaped else None
     ref = naive.periodic_homogenisation(b.pos, b.vel, b.mass, b.radius, packing.cell.h,
                                         nl.pairs, nl.img, sim.fpair, LAW.kn, LAW.kt,
-                                        packing.volume)
+                                        packing.volume, geometry=geometry)
     assert np.any(nl.img[sim.fpair.any(axis=1)] != 0)  # contacts across the boundary
     assert np.abs(packing.cell.h[0, 1]) > 0.0
     assert out["n_contacts"] == ref["n_contacts"] > 0
@@ -146,7 +150,6 @@ def test_compiled_response_equals_the_contact_by_contact_sums(packing):
     for key in ("coordination", "rattlers", "unbalanced"):
         assert out[key] == pytest.approx(ref[key], rel=1e-12)
     packing.restore(snap)
-
 
 def test_unrelaxed_call_stops_once_the_increment_is_imposed(packing):
     """relax=False (FEMxDEM's RVE call): exactly the loading steps, the cell at
@@ -283,32 +286,6 @@ def test_a_polygon_packing_consolidates_to_the_target_pressure(polygon_packing):
                                                  strict=True))
     assert out["void_ratio"] == pytest.approx(polygon_packing.volume / solid - 1.0,
                                               rel=1e-12)
-
-
-def test_polygon_response_equals_the_contact_by_contact_sums(polygon_packing):
-    """As for disks: mid-load in a sheared, stretched cell, with moving polygons and
-    contacts across periodic images, the compiled pass equals the sums written out
-    from the loop's contact rows (branch vectors between centres)."""
-    packing = polygon_packing
-    snap = packing.snapshot()
-    sim = packing.sim
-    packing.cell.lgrad[:] = [[-20.0, 35.0], [0.0, 10.0]]
-    sim.run(150, progress=False)
-    packing.cell.lgrad[:] = 0.0
-    out = packing.response()
-    b, nl = sim.bodies, sim.neighbors
-    ref = naive.periodic_homogenisation(b.pos, b.vel, b.mass, b.radius, packing.cell.h,
-                                        nl.pairs, nl.img, sim.fpair, LAW.kn, LAW.kt,
-                                        packing.volume, geometry=sim.pgeom)
-    assert np.any(nl.img[sim.pgeom[:, 0] > 0.0] != 0)
-    assert abs(packing.cell.h[0, 1]) > 0.0
-    assert out["n_contacts"] == ref["n_contacts"] > 0
-    for key in ("stress", "tangent", "fabric"):
-        np.testing.assert_allclose(out[key], ref[key], rtol=1e-12,
-                                   atol=1e-12 * np.abs(ref[key]).max())
-    for key in ("coordination", "rattlers", "unbalanced"):
-        assert out[key] == pytest.approx(ref[key], rel=1e-12)
-    packing.restore(snap)
 
 
 def test_a_polygon_packing_takes_a_biaxial_step_and_restores_bit_for_bit(

@@ -2,7 +2,8 @@
 quote as limits.
 
 a. **Equal 2D boxes stacked in line.** Two 0.2 m squares, the upper 1 mm into the
-   lower, its sides offset by 0 to 2 mm: the contact normal (it should be vertical).
+   lower, its sides offset by 0 to 10 mm: the contact normal (it should be vertical,
+   and is since the corners take the faces their arcs cross).
 b. **Polygon RVE consolidation.** The 40 pentagons and hexagons of
    ``tests/dem/test_rve.py`` consolidated to 100 kPa at the working friction 0.5 and
    frictionless (cap 100,000 steps): steps, wall time, unbalanced-force ratio,

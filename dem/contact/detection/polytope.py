@@ -49,15 +49,39 @@ scale):
 Corners inside (2D)
 -------------------
 In 2D the answer is read from the corners that lie inside the other body (every
-overlap of shallow depth has one). Each body's corners inside the other give one term:
+overlap of shallow depth has one). Walking a body's boundary, each run of corners inside
+the other lies on an *arc* that enters the other body through one face and leaves
+through the same or another (:func:`_arcs2`; edge crossings by Cyrus-Beck). A corner's
+depth is its distance to the faces of the other body's boundary across its arc (from
+where the arc leaves back to where it entered):
+
+* one face (a corner pressed into a face, a face lying on a face): the distance to that
+  face, along its normal, exactly as a nearest-face rule gives it;
+* several (the arc passes the other body's corner): the smooth minimum (:func:`smooth_min`)
+  of the two least distances, each divided by its face's piece of the boundary, squared,
+  relative to the longest piece, so a face comes in continuously as the arc reaches it;
+  the push is their normals weighted by the smooth minimum's gradient. Faces off the
+  arc never count: two equal boxes stacked with their sides in line (or offset by less
+  than the overlap) get their top and bottom faces' normal, where the corners' nearest
+  faces are the sides;
+* faces ahead, within 60 degrees of head-on along the arc's normal (its faces' normals
+  weighted by their pieces' lengths to the fourth), cap it, so the depth falls to zero
+  as a corner reaches the far side of a thin body.
+
+A corner on the other body's boundary counts as inside (so exactly aligned sides take
+the limit of nearly aligned ones); a body with no corner outside the other (swallowed
+whole) falls back to each corner's nearest face.
+
+Each body's corners inside the other give one term:
 
 * its depth ``d``, the deepest corner's (continuous as the deepest changes);
-* its normal, the depth-weighted mean of the normals of the faces those corners lie
-  nearest to, and its point, the depth-weighted mean of their projections onto those
-  faces moved in by ``d / 2``. Both move continuously as a corner comes in (its weight
-  starts at zero) and as two corners trade places as the deepest (a face tilting
-  through flat on a face). One corner inside: that corner's depth, its face's normal,
-  and the point where the force is the gradient of the elastic energy ``k d^2 / 2``.
+* its gradient, the depth-weighted mean of the corners' pushes, and its point, the
+  depth-weighted mean of the corners moved out along them by their depths, then in by
+  ``d / 2``. Both move continuously as a corner comes in (its weight starts at zero)
+  and as two corners trade places as the deepest (a face tilting through flat on a
+  face). One corner inside: that corner's depth and push, and the point where the force
+  is the gradient of the elastic energy ``k d^2 / 2`` (the overlap is ``d`` times the
+  push's length, at most 1, along it).
 
 With corners of both bodies inside (two staggered faces on each other, or two corners
 that have passed each other), the overlap is the smooth maximum ``S`` of the two depths
@@ -102,7 +126,10 @@ both programmes' final bases (:func:`_crease_rows`): the limit of P1/P2 there, a
 conservative. When a face wins, the point is placed as for a vertex on a face.
 
 Limitations: the point of a face-on-face contact is a weighted mean of vertices, not
-the centroid of the overlap region; in 3D the deeper side's corners alone decide it.
+the centroid of the overlap region; in 3D the deeper side's corners alone decide it,
+each by its nearest face (the 2D arcs have no 3D counterpart yet). In 2D, while a short
+piece's face (divisor below 1) decides a corner's depth, the push ignores how the
+divisor changes, so there the force is not quite a gradient.
 Shapes must be convex with outward unit face normals, as the shape table stores them.
 """
 
@@ -180,17 +207,191 @@ def _row2(k, nfo, fo0, fi0, faces, sco, sci, c, s, px, py):
     ay = s * faces[g, 0] + c * faces[g, 1]
     return ax, ay, 0.0, sci * faces[g, 3] + ax * px + ay * py
 
+@kernel(inline=True)
+def _inner2(v, sci, c, s, px, py, verts):
+    """Inner vertex ``v`` in the outer frame."""
+    lx, ly = sci * verts[v, 0], sci * verts[v, 1]
+    return c * lx - s * ly + px, s * lx + c * ly + py
+
+
+@kernel(inline=True)
+def _phi2(x, y, fo0, nfo, faces, sco):
+    """The outer polygon's face function ``max_f (n_f . x - o_f)`` at ``(x, y)``."""
+    fv = -math.inf
+    for k in range(fo0, fo0 + nfo):
+        fv = max(fv, faces[k, 0] * x + faces[k, 1] * y - sco * faces[k, 3])
+    return fv
+
+
+@kernel(inline=True)
+def _crossing2(ax, ay, bx, by, fo0, nfo, faces, sco, entering):
+    """Where the inner edge ``a -> b`` crosses the outer boundary, and the face it
+    crosses: entering (``a`` outside, ``b`` inside) the last face it passes into,
+    leaving the first face it passes out of (Cyrus-Beck)."""
+    dx, dy = bx - ax, by - ay
+    best, fb = (-math.inf if entering else math.inf), 0
+    for k in range(nfo):
+        nx, ny = faces[fo0 + k, 0], faces[fo0 + k, 1]
+        den = nx * dx + ny * dy
+        if (den < 0.0) if entering else (den > 0.0):
+            t = (sco * faces[fo0 + k, 3] - nx * ax - ny * ay) / den
+            if (t > best) if entering else (t < best):
+                best, fb = t, k
+    t = min(1.0, max(0.0, best))
+    return ax + t * dx, ay + t * dy, fb
+
+
+@kernel(inline=True)
+def _piece2(k, ef, ex, ey, vo0, nfo, sco, verts):
+    """Where face ``k``'s piece of an arc's outer boundary ends: its end vertex, or the
+    entry ``e`` on face ``ef``; and the next face."""
+    j = k + 1 if k + 1 < nfo else 0
+    if k == ef:
+        return ex, ey, j
+    return sco * verts[vo0 + j, 0], sco * verts[vo0 + j, 1], j
+
+
+@kernel
+def _support2(so, sco, ex, ey, ef, xx, xy, xf, vstart, verts, fstart, faces):
+    """The outer boundary from an arc's exit ``x`` (on face ``xf``) counter-clockwise
+    back to its entry ``e`` (face ``ef``): its outward normal ``g`` (its faces' normals
+    weighted by their pieces' lengths to the fourth), which says which faces lie ahead
+    of its corners, and the largest length to the fourth (0 for one face, whose normal
+    it returns exactly)."""
+    fo0, nfo, vo0 = fstart[so], fstart[so + 1] - fstart[so], vstart[so]
+    if xf == ef and (faces[fo0 + ef, 0] * (ey - xy) - faces[fo0 + ef, 1] * (ex - xx)
+                     >= 0.0):
+        return faces[fo0 + ef, 0], faces[fo0 + ef, 1], 0.0
+    gx, gy, l4max = 0.0, 0.0, 0.0
+    ax, ay, k = xx, xy, xf
+    for _ in range(nfo + 1):
+        bx, by, j = _piece2(k, ef, ex, ey, vo0, nfo, sco, verts)
+        l2 = (bx - ax) ** 2 + (by - ay) ** 2
+        gx += l2 * l2 * faces[fo0 + k, 0]
+        gy += l2 * l2 * faces[fo0 + k, 1]
+        l4max = max(l4max, l2 * l2)
+        if k == ef:
+            break
+        ax, ay, k = bx, by, j
+    norm = math.sqrt(gx * gx + gy * gy)
+    if norm < 1e-300:  # a zero-length arc (a corner just touching): its face
+        return faces[fo0 + ef, 0], faces[fo0 + ef, 1], 0.0
+    return gx / norm, gy / norm, l4max
+
+
+@kernel(inline=True)
+def _least2(e, vx, vy, e1, v1x, v1y, e2, v2x, v2y):
+    """Keep the two least candidates ``e1 <= e2`` (with their vectors)."""
+    if e < e1:
+        return e, vx, vy, e1, v1x, v1y
+    if e < e2:
+        return e1, v1x, v1y, e, vx, vy
+    return e1, v1x, v1y, e2, v2x, v2y
+
+
+@kernel
+def _corner2(cx, cy, gx, gy, so, sco, ex, ey, ef, xx, xy, xf, l4max, vstart, verts,
+             fstart, faces):
+    """A corner inside the outer polygon: ``(d, Gx, Gy)``, its depth and the direction
+    that pushes it out (module notes).
+
+    Its distances to the faces of its arc's outer boundary, each divided by its
+    piece's length squared relative to the longest (a face comes in as the arc reaches
+    it): ``d`` is the smooth minimum of the two least, ``G`` the sum of their normals
+    weighted by the smooth minimum's gradient (the depth's gradient where the divisors
+    are 1; never longer than 1). One face:
+    its distance and its normal, exactly. Then the faces ahead (within 60 degrees of
+    head-on along ``-g``, the distance divided by how nearly head-on) cap it, so the
+    depth falls to zero as the corner reaches the far side of a thin body: there ``G``
+    is that face's normal, as the nearest-face rule has it."""
+    fo0, nfo, vo0 = fstart[so], fstart[so + 1] - fstart[so], vstart[so]
+    e1, v1x, v1y, e2, v2x, v2y = math.inf, 0.0, 0.0, math.inf, 0.0, 0.0
+    if l4max > 0.0:
+        ax, ay, k = xx, xy, xf
+        for _ in range(nfo + 1):
+            bx, by, j = _piece2(k, ef, ex, ey, vo0, nfo, sco, verts)
+            l2 = (bx - ax) ** 2 + (by - ay) ** 2
+            if l2 > 0.0:
+                f, lam = fo0 + k, l2 / math.sqrt(l4max)
+                e = (sco * faces[f, 3] - (faces[f, 0] * cx + faces[f, 1] * cy)) / lam
+                e1, v1x, v1y, e2, v2x, v2y = _least2(e, faces[f, 0], faces[f, 1], e1,
+                                                     v1x, v1y, e2, v2x, v2y)
+            if k == ef:
+                break
+            ax, ay, k = bx, by, j
+    else:  # one face: its row, the same distance as the nearest-face rule's
+        e1 = sco * faces[fo0 + ef, 3] - (faces[fo0 + ef, 0] * cx + faces[fo0 + ef, 1] * cy)
+        v1x, v1y = faces[fo0 + ef, 0], faces[fo0 + ef, 1]
+    d, s1, s2 = e1, 1.0, 0.0
+    if e2 < math.inf:
+        d, s1, s2 = smooth_min(e1, e2)
+    hx, hy = s1 * v1x + s2 * v2x, s1 * v1y + s2 * v2y
+    for f in range(fo0, fo0 + nfo):  # the faces ahead: the plain minimum
+        head = -1.0 - 2.0 * (faces[f, 0] * gx + faces[f, 1] * gy)
+        if head > 0.0:
+            e = (sco * faces[f, 3] - (faces[f, 0] * cx + faces[f, 1] * cy)) / head
+            if e < d:
+                d, hx, hy = e, faces[f, 0], faces[f, 1]
+    return d, hx, hy
+
+
+@kernel
+def _arcs2(so, sco, si, sci, c, s, px, py, vout, inside, vstart, verts, fstart, faces):
+    """The inner polygon's corners inside the outer, arc by arc (module notes):
+    ``(sw, swx, swy, sgx, sgy, dv)``, the sums of their weights ``w``, of ``w`` times
+    their projections onto their arc's supporting line and of ``w`` times its outward
+    normal, and the largest weight (the term's depth). ``vout`` is an inner vertex
+    outside; bit ``v`` of ``inside`` says vertex ``v`` (< 63) is not."""
+    fo0, nfo = fstart[so], fstart[so + 1] - fstart[so]
+    vi0, nvi = vstart[si], vstart[si + 1] - vstart[si]
+    sw, swx, swy, sgx, sgy, dv = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    inarc, first, ex, ey, ef = False, 0, 0.0, 0.0, 0
+    v = vout
+    x0, y0 = _inner2(vi0 + v, sci, c, s, px, py, verts)
+    for _ in range(nvi):
+        q = v + 1 if v + 1 < nvi else 0
+        x1, y1 = _inner2(vi0 + q, sci, c, s, px, py, verts)
+        if q < 63:
+            qin = (inside >> q) & 1 == 1
+        else:
+            qin = _phi2(x1, y1, fo0, nfo, faces, sco) <= 0.0
+        if not inarc and qin:
+            ex, ey, ef = _crossing2(x0, y0, x1, y1, fo0, nfo, faces, sco, True)
+            inarc, first = True, q
+        elif inarc and not qin:
+            xx, xy, xf = _crossing2(x0, y0, x1, y1, fo0, nfo, faces, sco, False)
+            gx, gy, l4max = _support2(so, sco, ex, ey, ef, xx, xy, xf, vstart, verts,
+                                      fstart, faces)
+            k = first
+            for _ in range(nvi):  # the arc's corners, first .. v
+                cx, cy = _inner2(vi0 + k, sci, c, s, px, py, verts)
+                d, hx, hy = _corner2(cx, cy, gx, gy, so, sco, ex, ey, ef, xx, xy, xf,
+                                     l4max, vstart, verts, fstart, faces)
+                w = max(0.0, d)
+                sw += w
+                swx += w * (cx + w * hx)
+                swy += w * (cy + w * hy)
+                sgx += w * hx
+                sgy += w * hy
+                dv = max(dv, w)
+                if k == v:
+                    break
+                k = k + 1 if k + 1 < nvi else 0
+            inarc = False
+        v, x0, y0 = q, x1, y1
+    return sw, swx, swy, sgx, sgy, dv
+
 
 @kernel
 def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol):
     """Minimise the outer polygon's face function over the inner polygon (outer frame).
 
     Returns ``(t, x, y, nx, ny, count, pivots, sw, swx, swy, sgx, sgy, dv)``: the
-    optimum, its point
-    (the average of the optimal inner vertices when several are), the normalised sum of
-    the outer normals attaining the max there, how many inner vertices are optimal (0:
-    the optimum is not a vertex), the sums above over the inner vertices inside, and
-    the deepest vertex's depth ``dv`` (for the contact point).
+    optimum, its point (the average of the optimal inner vertices when several are),
+    the normalised sum of the outer normals attaining the max there, how many inner
+    vertices are optimal (0: the optimum is not a vertex), and the inner corners inside
+    (:func:`_arcs2`): the sums of their weights, of weight times projection and of
+    weight times normal, and the deepest one's depth ``dv``.
     """
     fo0, nfo = fstart[so], fstart[so + 1] - fstart[so]
     fi0, nfi = fstart[si], fstart[si + 1] - fstart[si]
@@ -202,6 +403,8 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
     # the inner vertices inside, weighted by their depth w: sums of w, of w times their
     # projection onto the outer face nearest, and of w times that face's normal
     sw, swx, swy, sgx, sgy = 0.0, 0.0, 0.0, 0.0, 0.0
+    vout = -1  # an inner vertex outside (where the walk over the arcs starts)
+    inside = 0  # bit v: vertex v inside or on the outer boundary (v < 63)
     for v in range(nvi):
         lx, ly = sci * verts[vi0 + v, 0], sci * verts[vi0 + v, 1]
         wx, wy = c * lx - s * ly + px, s * lx + c * ly + py
@@ -210,6 +413,10 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
             val = faces[fo0 + k, 0] * wx + faces[fo0 + k, 1] * wy - sco * faces[fo0 + k, 3]
             if val > fv:
                 fv, fa = val, k
+        if fv > 0.0 and vout < 0:
+            vout = v
+        if fv <= 0.0 and v < 63:
+            inside |= 1 << v
         if fv < 0.0:
             gx, gy = faces[fo0 + fa, 0], faces[fo0 + fa, 1]
             sw -= fv
@@ -223,6 +430,10 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
         if fv < fmin and abs(faces[fi0 + e, 0] * faces[fi0 + v, 1]
                              - faces[fi0 + e, 1] * faces[fi0 + v, 0]) > 1e-9:
             fmin, vb, fb = fv, v, fa  # a corner, not a straight angle
+    dv = -lo1
+    if vout >= 0 and (inside != 0 or nvi > 63):  # else wholly inside: nearest faces
+        sw, swx, swy, sgx, sgy, dv = _arcs2(so, sco, si, sci, c, s, px, py, vout, inside,
+                                            vstart, verts, fstart, faces)
     k0 = nfo + (vb - 1 if vb > 0 else nfi - 1)
     k1 = nfo + vb
     k2 = fb
@@ -336,7 +547,7 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
             if val > best:
                 best, nx, ny = val, faces[f, 0], faces[f, 1]
         norm = 1.0
-    return zt, zx, zy, nx / norm, ny / norm, count, it, sw, swx, swy, sgx, sgy, -lo1
+    return zt, zx, zy, nx / norm, ny / norm, count, it, sw, swx, swy, sgx, sgy, dv
 
 
 @kernel
@@ -393,17 +604,25 @@ def _polytope2(sa, a, sb, b, sx, sy, pos, rot, geo):
 @kernel(inline=True)
 def _corner_term2(sw, swx, swy, sgx, sgy, depth, co, so, ox, oy):
     """One body's corners in the other (the outer, frame ``co, so`` at ``o``): the
-    point and the outer body's outward normal (world).
+    point and the depth's gradient (world; along the outer body's outward normal, of
+    length 1 for corners in one face).
 
-    The normal is the depth-weighted mean of the normals of the faces the corners lie
-    nearest to; the point the depth-weighted mean of their projections onto those
-    faces, moved in by half the deepest corner's depth. Both move continuously as
-    corners come in and as the deepest changes."""
-    norm = math.sqrt(sgx * sgx + sgy * sgy)
+    The gradient is the depth-weighted mean of the corners' (:func:`_corner2`); the
+    point the depth-weighted mean of the corners moved out along them by their depths,
+    then in by half the deepest's. Both move continuously as corners come in and as
+    the deepest changes."""
     mx, my = (swx - 0.5 * depth * sgx) / sw, (swy - 0.5 * depth * sgy) / sw
-    gx, gy = sgx / norm, sgy / norm
+    gx, gy = sgx / sw, sgy / sw
     return (co * mx - so * my + ox, so * mx + co * my + oy, co * gx - so * gy,
             so * gx + co * gy)
+
+
+@kernel(inline=True)
+def _along2(depth, gx, gy, px, py):
+    """One term's contact: the overlap ``depth |g|`` along ``g / |g|`` (so that a linear
+    spring's force is the gradient of its energy)."""
+    norm = math.sqrt(gx * gx + gy * gy)
+    return depth * norm, gx / norm, gy / norm, px, py
 
 
 @kernel
@@ -421,14 +640,14 @@ def _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x, s1y, g1x, g1y, v1,
         p2x, p2y, n2x, n2y = _corner_term2(s2, s2x, s2y, g2x, g2y, v2, ca, sna,
                                            pos[a, 0], pos[a, 1])
     if s2 <= 0.0:
-        return v1, n1x, n1y, p1x, p1y
+        return _along2(v1, n1x, n1y, p1x, p1y)
     if s1 <= 0.0:
-        return v2, n2x, n2y, p2x, p2y
+        return _along2(v2, n2x, n2y, p2x, p2y)
     ov, w1, w2 = smooth_max(v1, v2)
     if w2 == 0.0:
-        return v1, n1x, n1y, p1x, p1y
+        return _along2(v1, n1x, n1y, p1x, p1y)
     if w1 == 0.0:
-        return v2, n2x, n2y, p2x, p2y
+        return _along2(v2, n2x, n2y, p2x, p2y)
     # forces w1 n1 at p1 and w2 n2 at p2 (times k S): their resultant, on its line of
     # action through the point nearest their weighted mean
     nx, ny = w1 * n1x + w2 * n2x, w1 * n1y + w2 * n2y
@@ -463,6 +682,22 @@ def smooth_max(d1, d2):
     q = BLEND * x * x / (8.0 * h * h)
     return (m + 0.25 * h + x * x / (4.0 * h), 0.5 + BLEND / 8.0 + x / (2.0 * h) - q,
             0.5 + BLEND / 8.0 - x / (2.0 * h) - q)
+
+
+@kernel(inline=True)
+def smooth_min(d1, d2):
+    """``(S, dS/dd1, dS/dd2)``: the C1 minimum of two depths matching :func:`smooth_max`
+    (``S = d1 + d2 - smooth_max``), the minimum itself where they are ``BLEND`` apart."""
+    m = 0.5 * (d1 + d2)
+    h = BLEND * m
+    x = d2 - d1
+    if h <= 0.0 or x >= h:
+        return d1, 1.0, 0.0
+    if -x >= h:
+        return d2, 0.0, 1.0
+    q = BLEND * x * x / (8.0 * h * h)
+    return (m - 0.25 * h - x * x / (4.0 * h), 0.5 - BLEND / 8.0 + x / (2.0 * h) + q,
+            0.5 - BLEND / 8.0 - x / (2.0 * h) + q)
 
 
 # --------------------------------------------------------------------------- 3D

@@ -74,6 +74,17 @@ RVE_SCHEMA = {
             "float", default=0.0, range=_NONNEGATIVE,
             doc="Friction coefficient while consolidating (0: densest packing); "
                 "[contact] mu applies after."),
+        "shape": Key("str", default="sphere", choices=("sphere", "polygon", "box"),
+                     doc="Particle shape: sphere (a disk in 2D), polygon (2D: regular, "
+                         "circumradius the radius) or box (a square or cube, "
+                         "half-diagonal the radius); polygons and boxes at random "
+                         "orientations from the seed."),
+        "sides": Key("int", range=Range(3.0, 64.0),
+                     doc="Corners of each polygon, or the fewest with sides_max; "
+                         "shape = polygon only (default 6)."),
+        "sides_max": Key("int", range=Range(3.0, 64.0),
+                         doc="Optional: the most corners; each polygon draws its count "
+                             "uniformly from sides to sides_max."),
         "file": Key("path", doc="Optional: a packing.h5 of an earlier run to start "
                                 "from instead (it holds the law, size and p0)."),
     }),
@@ -107,7 +118,7 @@ RVE_SCHEMA = {
 
 #: [packing] keys that describe a packing to generate (not used with ``file``)
 _GENERATION_KEYS = ("dim", "count", "radius", "density", "seed", "p0",
-                    "consolidation_friction")
+                    "consolidation_friction", "shape", "sides", "sides_max")
 
 #: written by a test: curves and summary, figure, and (generated packings) the packing
 OUTPUTS = ("rve_test.h5", "rve_test.png", "packing.h5")
@@ -171,6 +182,7 @@ def validate_config(data, source="<rve>", base_dir="."):
                          "[packing]")
         if t["confining"] is None:
             t["confining"] = p["p0"]
+        check_shape(ctx, p, p["dim"])
     if t["increment"] > t["axial_strain"]:
         ctx.fail(f"increment = {_fmt(t['increment'])} must not exceed axial_strain = "
                  f"{_fmt(t['axial_strain'])}", "[test]")
@@ -178,6 +190,51 @@ def validate_config(data, source="<rve>", base_dir="."):
         stem = Path(source).stem.strip("<>") or "rve"
         cfg["output"]["dir"] = str(Path("output") / stem)
     return cfg
+
+
+def check_shape(ctx, p, dim, where="[packing]"):
+    """The shape keys ``shape``, ``sides``, ``sides_max`` of a section ``p`` agree with
+    each other and with ``dim`` (``sides`` defaults to 6 for polygons)."""
+    if p["shape"] != "polygon":
+        for key in ("sides", "sides_max"):
+            if p[key] is not None:
+                ctx.fail(f"{key} is for shape = \"polygon\", not {p['shape']!r}", where)
+        return
+    if dim != 2:
+        ctx.fail('shape = "polygon" needs dim = 2 (in 3D use "box")', where)
+    if p["sides"] is None:
+        p["sides"] = 6
+    if p["sides_max"] is not None and p["sides_max"] < p["sides"]:
+        ctx.fail(f"sides_max = {p['sides_max']} must be at least sides = {p['sides']}",
+                 where)
+
+
+def shape_maker(p, dim=None):
+    """The ``shape(r, rng)`` of :func:`dem.rve.generate` for the validated shape keys
+    of a section ``p`` (None for spheres); ``dim`` defaults to ``p["dim"]``."""
+    from dem.shapes import Box, ConvexPolygon
+
+    if p["shape"] == "sphere":
+        return None
+    if p["shape"] == "box":
+        d = p["dim"] if dim is None else dim
+        return lambda r, rng: Box([r / math.sqrt(d)] * d)
+    lo = p["sides"]
+    hi = lo if p["sides_max"] is None else p["sides_max"]
+    return lambda r, rng: ConvexPolygon.regular(int(rng.integers(lo, hi + 1)), r)
+
+
+def grains(bodies):
+    """What the particles are, in words: disks, spheres, polygons, squares, ..."""
+    from dem.shapes import Shape
+
+    kinds = set(np.unique(bodies.kind).tolist())
+    names = {Shape.SPHERE: ("disks", "spheres"), Shape.BOX: ("squares", "cubes"),
+             Shape.POLYGON: ("polygons", "polygons"),
+             Shape.POLYHEDRON: ("polyhedra", "polyhedra")}
+    if len(kinds) == 1 and kinds <= set(names):
+        return names[kinds.pop()][bodies.dim - 2]
+    return "particles"
 
 
 def _law(c):
@@ -211,7 +268,8 @@ def make_packing(cfg):
             rve = rve_mod.generate(p["dim"], p["count"], p["radius"], law, p["p0"],
                                    density=p["density"], seed=p["seed"],
                                    friction=p["consolidation_friction"],
-                                   damping=t["damping"], **settings)
+                                   damping=t["damping"], shape=shape_maker(p),
+                                   **settings)
         except ValueError as exc:
             raise SceneError(f"{where} {exc}") from None
         return rve, t["confining"], True
@@ -459,7 +517,8 @@ def _summarize(c, rve, confining, increment):
     near = np.abs(ea - ea[k]) <= max(0.01, 2.0 * increment) + 1e-12
     late = ea >= 0.8 * ea[-1] - 1e-12
     cs_ratio = float(ratio[late].mean())
-    return {"dim": d, "n_particles": int(rve.bodies.n), "confining": confining,
+    return {"dim": d, "n_particles": int(rve.bodies.n), "particles": grains(rve.bodies),
+            "confining": confining,
             "initial_void_ratio": float(c["void_ratio"][0]),
             "peak_stress_ratio": float(ratio[k]), "peak_axial_strain": float(ea[k]),
             "peak_friction_angle": float(friction_angle(ratio[k], d)),
@@ -521,7 +580,7 @@ def _write_figure(path, result):
     ax2.set(xlabel="axial strain [%]",
             ylabel="volumetric strain [%] (contraction > 0)")
     test = "biaxial" if s["dim"] == 2 else "triaxial"
-    fig.suptitle(f"drained {test} test, {s['n_particles']} particles, confining "
+    fig.suptitle(f"drained {test} test, {s['n_particles']} {s['particles']}, confining "
                  f"{s['confining']:.4g} Pa, e0 = {s['initial_void_ratio']:.3f}")
     save_figure(fig, path, dpi=120)
 
@@ -550,9 +609,9 @@ def cmd_rve(args):
         return _error("interrupted", 130)
     s = result.summary
     kind = "biaxial" if s["dim"] == 2 else "triaxial"
-    grains = "disks" if s["dim"] == 2 else "spheres"
     lo = 0.8 * result.curves["axial_strain"][-1]
-    print(f"hmm rve {args.file}: drained {kind} test, {s['n_particles']} {grains}, "
+    print(f"hmm rve {args.file}: drained {kind} test, {s['n_particles']} "
+          f"{s['particles']}, "
           f"confining {s['confining']:.4g} Pa\n"
           f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
           f"  peak friction angle      {s['peak_friction_angle']:.2f} deg "

@@ -153,6 +153,15 @@ SCHEMA = {
         "consolidation_friction": Key("float", default=0.0, range=NONNEGATIVE,
                                       only=("dem", "adaptive"),
                                       doc="Friction while consolidating (lower: denser)."),
+        "shape": Key("str", default="sphere", choices=("sphere", "polygon", "box"),
+                     only=("dem", "adaptive"),
+                     doc="Particle shape of generated packings, as [packing] shape of "
+                         "`hmm rve` (polygon: 2D only)."),
+        "sides": Key("int", range=Range(3.0, 64.0), only=("dem", "adaptive"),
+                     doc="Corners of each polygon, or the fewest with sides_max "
+                         "(default 6)."),
+        "sides_max": Key("int", range=Range(3.0, 64.0), only=("dem", "adaptive"),
+                         doc="Optional: the most corners of a polygon."),
         "kn": Key("float", "N/m", default=1e8, range=POSITIVE, only=("dem", "adaptive"),
                   doc="Normal contact stiffness (linear law)."),
         "kt": Key("float", "N/m", default=5e7, range=NONNEGATIVE, only=("dem", "adaptive"),
@@ -265,6 +274,10 @@ def validate_problem(data, source="<problem>", base_dir="."):
     if out["imperfection"] and out["micro"]["model"] not in ("dem", "adaptive"):
         ctx.fail(f"needs [micro] model = \"dem\" or \"adaptive\", not "
                  f"\"{out['micro']['model']}\"", "[[imperfection]] #1")
+    if out["micro"]["model"] in ("dem", "adaptive"):
+        from .experiment import check_shape
+
+        check_shape(ctx, out["micro"], m["dim"], "[micro]")
     return out
 
 
@@ -464,10 +477,13 @@ def _packing(problem, k, dim, progress, spot=None):
         if spot is not None and spot["mu"] is not None:
             rve.set_friction(spot["mu"])
         return rve
+    from .experiment import shape_maker
+
     law = LinearSpring(kn=mc["kn"], kt=mc["kt"], mu=mc["mu"])
     return rvemod.generate(dim, mc["count"], mc["radius"], law, mc["p0"],
                            density=mc["density"], seed=mc["seed"] + k,
-                           friction=mc["consolidation_friction"], **opts)
+                           friction=mc["consolidation_friction"],
+                           shape=shape_maker(mc, dim), **opts)
 
 
 def clone_rve(rve):

@@ -41,6 +41,23 @@ mu = 0.5
 """
 
 
+POLYGONS = """
+[packing]
+count = 24
+radius = [0.8e-3, 1.2e-3]
+p0 = 1e5
+seed = 6
+shape = "polygon"
+sides = 5
+sides_max = 6
+[contact]
+law = "linear"
+kn = 1e8
+kt = 5e7
+mu = 0.5
+"""
+
+
 def _config(data, out):
     cfg = validate_config(copy.deepcopy(data), "small.toml")
     cfg["output"]["dir"] = str(out)
@@ -149,6 +166,31 @@ def test_triaxial_holds_both_lateral_stresses(tmp_path):
     assert np.all(np.diff(result.curves["stress_ratio"]) > 0.0)
 
 
+def test_polygon_packing_from_the_file_keys(tmp_path, capsys):
+    """[packing] shape = "polygon": 24 polygons of 5 or 6 corners at the circumradii
+    drawn, consolidated and compressed like disks (the lateral stress held, the axial
+    stress rising), reported as polygons; the same file gives the same curves."""
+    text = POLYGONS + "[test]\naxial_strain = 2e-3\nincrement = 1e-3\n"
+    path = _write(tmp_path, text)
+    cfg = load_config(path)
+    assert cfg["packing"]["shape"] == "polygon" and cfg["packing"]["sides"] == 5
+    result = run_experiment(cfg, progress=False)
+    rve = RVE.load_file(tmp_path / "out" / "packing.h5")
+    corners = np.diff(rve.bodies.table.arrays()[2])[rve.bodies.shape]
+    assert set(corners.tolist()) == {5, 6}
+    radii = rve.bodies.table.arrays()[8][rve.bodies.shape] * rve.bodies.table.arrays()[1][
+        rve.bodies.shape]
+    assert np.all((radii >= 0.8e-3 - 1e-15) & (radii <= 1.2e-3 + 1e-15))
+    assert result.summary["particles"] == "polygons"
+    stress = result.curves["stress"]
+    assert np.all(np.abs(-stress[:, 0, 0] - P0) <= 1e-3 * P0 * (1 + 1e-12))
+    assert np.all(np.diff(-stress[:, 1, 1]) > 0.0)
+    again = run_experiment(load_config(path), progress=False, overwrite=True)
+    np.testing.assert_array_equal(again.curves["stress"], stress)
+    assert _cmd(path, overwrite=True) == 0
+    assert "24 polygons" in capsys.readouterr().out
+
+
 # --------------------------------------------------------------------------- CLI
 def test_cli_prints_the_summary_and_refuses_to_overwrite(biaxial, tmp_path, capsys):
     _, out = biaxial
@@ -191,6 +233,17 @@ def test_cli_reports_a_failed_relaxation(biaxial, tmp_path, capsys):
      "[packing] count is not used with file"),
     (("[packing]", "[packing]\ndim = 4"), "[packing] dim must be 2 or 3, got 4"),
     (("law = \"linear\"", "law = \"hooke\""), "law must be \"linear\" or"),
+    (("[packing]", '[packing]\nshape = "polyhedron"'),
+     "[packing] shape must be \"sphere\", \"polygon\" or \"box\""),
+    (("[packing]", '[packing]\nshape = "polygon"\ndim = 3'),
+     '[packing] shape = "polygon" needs dim = 2 (in 3D use "box")'),
+    (("[packing]", "[packing]\nsides = 5"), "[packing] sides is for shape = \"polygon\""),
+    (("[packing]", '[packing]\nshape = "polygon"\nsides = 6\nsides_max = 5'),
+     "[packing] sides_max = 5 must be at least sides = 6"),
+    (("[packing]", '[packing]\nshape = "polygon"\nsides = 2'),
+     "[packing] sides must be in [3, 64], got 2"),
+    (("[packing]", '[packing]\nfile = "none.h5"\nshape = "box"'),
+     "is not used with file"),
 ])
 def test_bad_files_fail_in_one_line_without_output(tmp_path, capsys, edit, message):
     text = (GENERATED + "[test]\n").replace(*edit, 1)

@@ -135,6 +135,34 @@ def test_multiscale_biaxial_with_dem_rves(tmp_path):
     assert np.mean(sig[:, 0, 0]) == pytest.approx(-1e5, rel=0.1)
 
 
+def test_multiscale_with_polygon_rves(tmp_path):
+    """[micro] shape = "polygon": the Gauss points run RVEs of hexagons (one element,
+    4 points of 20 hexagons, one load step) and the run converges with the lateral
+    stress near the confining pressure; a polygon in a 3D mesh is refused."""
+    from hmm.problem import build_macro, model_factory
+
+    prob = copy.deepcopy(DEMO)
+    prob["mesh"]["cells"] = [1, 1]
+    prob["micro"].update(count=20, shape="polygon", sides=6)
+    prob["load"]["steps"] = 1
+    prob["dirichlet"][2]["value"] = -0.0002
+    problem = validate_problem(prob)
+    macro = build_macro(problem)
+    model = model_factory(problem, 2, points=macro.gauss_points())(0)
+    corners = np.diff(model.rve.bodies.table.arrays()[2])
+    assert set(corners[model.rve.bodies.shape].tolist()) == {6}
+    summary = run_problem(problem, tmp_path / "out", progress=False)
+    assert summary["load_factor"] == pytest.approx(1.0)
+    assert summary["dem_points"] == summary["gauss_points"] == 4
+    with h5py.File(tmp_path / "out" / "fields.h5") as f:
+        sig = f["steps/00001/gauss/stress"][()]
+    assert np.mean(sig[:, 0, 0]) == pytest.approx(-1e5, rel=0.1)
+    three = copy.deepcopy(prob)
+    three["mesh"].update(dim=3, element="hex1", size=[1.0, 1.0, 1.0], cells=[1, 1, 1])
+    with pytest.raises(SceneError, match=r'\[micro\] shape = "polygon" needs dim = 2'):
+        validate_problem(three)
+
+
 def test_demo_problem_is_valid_and_documented():
     p = validate_problem(DEMO, "<demo>")
     assert p["micro"]["model"] == "dem"

@@ -137,13 +137,13 @@ def test_multiscale_biaxial_with_dem_rves(tmp_path):
 
 def test_multiscale_with_polygon_rves(tmp_path):
     """[micro] shape = "polygon": the Gauss points run RVEs of hexagons (one element,
-    4 points of 20 hexagons, one load step) and the run converges with the lateral
+    4 points of 12 hexagons, one load step) and the run converges with the lateral
     stress near the confining pressure; a polygon in a 3D mesh is refused."""
     from hmm.problem import build_macro, model_factory
 
     prob = copy.deepcopy(DEMO)
     prob["mesh"]["cells"] = [1, 1]
-    prob["micro"].update(count=20, shape="polygon", sides=6)
+    prob["micro"].update(count=12, shape="polygon", sides=6)
     prob["load"]["steps"] = 1
     prob["dirichlet"][2]["value"] = -0.0002
     problem = validate_problem(prob)

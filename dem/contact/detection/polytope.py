@@ -687,17 +687,15 @@ def smooth_max(d1, d2):
 @kernel(inline=True)
 def smooth_min(d1, d2):
     """``(S, dS/dd1, dS/dd2)``: the C1 minimum of two depths matching :func:`smooth_max`
-    (``S = d1 + d2 - smooth_max``), the minimum itself where they are ``BLEND`` apart."""
-    m = 0.5 * (d1 + d2)
-    h = BLEND * m
-    x = d2 - d1
-    if h <= 0.0 or x >= h:
+    (``S = d1 + d2 - smooth_max``), the minimum itself, exactly, where they are further
+    apart than ``h``."""
+    h = BLEND * 0.5 * (d1 + d2)
+    if h <= 0.0 or d2 - d1 >= h:
         return d1, 1.0, 0.0
-    if -x >= h:
+    if d1 - d2 >= h:
         return d2, 0.0, 1.0
-    q = BLEND * x * x / (8.0 * h * h)
-    return (m - 0.25 * h - x * x / (4.0 * h), 0.5 - BLEND / 8.0 + x / (2.0 * h) + q,
-            0.5 - BLEND / 8.0 - x / (2.0 * h) + q)
+    s, w1, w2 = smooth_max(d1, d2)
+    return d1 + d2 - s, 1.0 - w1, 1.0 - w2
 
 
 # --------------------------------------------------------------------------- 3D

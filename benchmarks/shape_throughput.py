@@ -102,7 +102,7 @@ def settle(dim, n, path):
     sim = dem.Simulation(sim.bodies, dem.LinearSpring(**LAW_ARGS[dim]), gravity=g,
                          damping=0.4)
     z0 = float(np.sum(b.mass[~b.is_fixed] * b.pos[~b.is_fixed, -1]))
-    cap = C.env_int("SETTLE_STEPS", 40000)
+    cap = C.env_int("SETTLE_STEPS", 100000)
     t = time.perf_counter()
     ratio = 1.0
     while sim.step < cap:

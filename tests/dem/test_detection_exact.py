@@ -5,7 +5,9 @@ The polytope-polytope kernel is checked against the same linear programme solved
 optimum is a vertex, and against a separating-axis test over every face and every edge
 pair where it is not (3D edge across edge), on seeded random convex polygons and
 polyhedra, and on hand-worked box configurations; the contact point against the
-depth-weighted mean of the deeper side's vertices inside the other body. Properties: the
+depth-weighted mean of the deeper side's vertices inside the other body (3D), and in 2D
+the corners' terms against a numpy walk over the arcs of each boundary inside the
+other (:func:`arcs_ref`). Properties: the
 overlap follows the penetration depth continuously as an edge slides off another, the
 point slides as a resting box tilts, and for one vertex on a face or one edge on an
 edge the force ``kn ov n`` at the point is minus the gradient of ``kn ov^2 / 2``

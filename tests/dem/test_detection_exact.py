@@ -20,7 +20,7 @@ table layout.
 import numpy as np
 import pytest
 from scipy.optimize import linprog
-from scipy.spatial import ConvexHull
+from scipy.spatial import ConvexHull, HalfspaceIntersection
 from scipy.spatial.transform import Rotation
 
 from dem.contact.detection.analytic import (
@@ -30,7 +30,14 @@ from dem.contact.detection.analytic import (
     sphere_polytope,
     sphere_sphere,
 )
-from dem.contact.detection.polytope import BLEND, DEEPER, polytope_contact, polytope_plane
+from dem.contact.detection.polytope import (
+    BLEND,
+    DEEPER,
+    PATCH_FROM,
+    PATCH_TO,
+    polytope_contact,
+    polytope_plane,
+)
 from dem.shapes.table import BOX, POLYGON, POLYHEDRON, ShapeTable
 
 SQ3 = np.sqrt(3.0)
@@ -201,7 +208,7 @@ def depth_ref(vi, fo):
     return np.maximum(-np.max(vi @ fo[:, :d].T - fo[:, d], axis=1), 0.0)
 
 
-def contact_ref(geo, sa, sb, dim, pos, rot):
+def rules_ref(geo, sa, sb, dim, pos, rot):
     """The contact from the two linear programmes and, where the deeper optimum is no
     vertex (3D), the separating axes: ``(ov, n, c, rule)`` of bodies 0 and 1, ``rule``
     one of "apart", "2D" (2D, no vertex), ["sat-"]"vertex" or "vertices" (how many
@@ -251,6 +258,56 @@ def contact_ref(geo, sa, sb, dim, pos, rot):
     return ov, n, c, rule + ("vertex" if np.count_nonzero(w) == 1 else "vertices")
 
 
+def intersection_ref(fa, fb):
+    """Volume and centroid of the intersection of two convex polyhedra (world faces), by
+    qhull from a Chebyshev centre."""
+    a = np.vstack([fa, fb])
+    norm = np.linalg.norm(a[:, :3], axis=1)
+    res = linprog(-np.eye(4)[3], A_ub=np.column_stack([a[:, :3], norm]), b_ub=a[:, 3],
+                  bounds=[(None, None)] * 3 + [(0, None)], method="highs")
+    inner = res.x[:3]
+    pts = HalfspaceIntersection(np.column_stack([a[:, :3], -a[:, 3]]), inner).intersections
+    hull = ConvexHull(pts)
+    vol = np.array([abs(np.linalg.det(pts[t] - inner)) / 6 for t in hull.simplices])
+    cen = np.array([(pts[t].sum(axis=0) + inner) / 4 for t in hull.simplices])
+    return vol.sum(), vol @ cen / vol.sum()
+
+
+def patch_ref(geo, sa, sb, pos, rot):
+    """3D: the contact of :func:`rules_ref`, its point moved along the contact plane to
+    the centroid of the intersection by the weight of :data:`PATCH_FROM` ..
+    :data:`PATCH_TO` (rule "patch-..." where it moves)."""
+    ov, n, c, rule = rules_ref(geo, sa, sb, 3, pos, rot)
+    if rule == "apart":
+        return ov, n, c, rule
+    vol, cen = intersection_ref(world(geo, sa, 3, pos, rot, 0)[1],
+                                world(geo, sb, 3, pos, rot, 1)[1])
+    u = np.clip((np.sqrt(vol / ov**3) - PATCH_FROM) / (PATCH_TO - PATCH_FROM), 0.0, 1.0)
+    if u == 0.0:
+        return ov, n, c, rule
+    e = cen - c
+    return ov, n, c + u * u * (3 - 2 * u) * (e - (e @ n) * n), "patch-" + rule
+
+
+def contact_ref(geo, sa, sb, dim, pos, rot):
+    """The reference contact of bodies 0 and 1: :func:`rules_ref`, in 3D with the
+    patches' points (:func:`patch_ref`)."""
+    if dim == 2:
+        return rules_ref(geo, sa, sb, dim, pos, rot)
+    return patch_ref(geo, sa, sb, pos, rot)
+
+
+def smooth_max_ref(d1, d2):
+    """The smooth maximum of two depths and its gradient."""
+    m, x = (d1 + d2) / 2, d1 - d2
+    h = BLEND * m
+    if abs(x) >= h:
+        return (d1, 1.0, 0.0) if x > 0 else (d2, 0.0, 1.0)
+    q = BLEND * x**2 / (8 * h**2)
+    return (m + h / 4 + x**2 / (4 * h), 0.5 + BLEND / 8 + x / (2 * h) - q,
+            0.5 + BLEND / 8 - x / (2 * h) - q)
+
+
 def crossing_ref(p, q, f, entering):
     """Where the segment ``p -> q`` crosses the boundary of the polygon with faces ``f``
     (entering: the last face line it passes into; leaving: the first it passes out of),
@@ -283,13 +340,9 @@ def support_ref(vo, fo, e, fe, x, fx):
 
 def smooth_min_ref(d1, d2):
     """The smooth minimum of two depths and its gradient, from the smooth maximum."""
-    m, x = (d1 + d2) / 2, d1 - d2
-    h = BLEND * m
-    if abs(x) >= h:
-        return (d1, 1.0, 0.0) if x < 0 else (d2, 0.0, 1.0)
-    s = m + h / 4 + x**2 / (4 * h)
-    w1 = 0.5 + BLEND / 8 + x / (2 * h) - BLEND * x**2 / (8 * h**2)
-    w2 = 0.5 + BLEND / 8 - x / (2 * h) - BLEND * x**2 / (8 * h**2)
+    if abs(d1 - d2) >= BLEND * (d1 + d2) / 2:
+        return (d1, 1.0, 0.0) if d1 < d2 else (d2, 0.0, 1.0)
+    s, w1, w2 = smooth_max_ref(d1, d2)
     return d1 + d2 - s, 1 - w1, 1 - w2
 
 
@@ -369,13 +422,9 @@ def corners_ref(va, fa, vb, fb):
     if len(terms) == 1:
         return along(*terms[0])
     (d1, n1, p1), (d2, n2, p2) = terms
-    m, x = (d1 + d2) / 2, d1 - d2
-    h = BLEND * m
-    if abs(x) >= h:
-        return along(*terms[0]) if x > 0 else along(*terms[1])
-    s = m + h / 4 + x**2 / (4 * h)  # the smooth maximum and its gradient
-    w1 = 0.5 + BLEND / 8 + x / (2 * h) - BLEND * x**2 / (8 * h**2)
-    w2 = 0.5 + BLEND / 8 - x / (2 * h) - BLEND * x**2 / (8 * h**2)
+    s, w1, w2 = smooth_max_ref(d1, d2)
+    if w2 == 0.0 or w1 == 0.0:
+        return along(*terms[0]) if w2 == 0.0 else along(*terms[1])
     force = w1 * n1 + w2 * n2
     def cross(u, v):
         return u[0] * v[1] - u[1] * v[0]
@@ -484,8 +533,9 @@ def test_face_on_face_offset(dim):
     inside A (x = 0.5) are equally deep, and the point is their mean, the overlap's
     centre; the arcs' normals are the faces' but for the short side faces on them,
     which tilt them by (delta / L)^4 (L = 0.6 m, the overlap's width) and deepen them
-    by (delta / L)^3. 3D: no corner of B is inside A; the point is the mean of A's
-    corners inside B (x = -0.1)."""
+    by (delta / L)^3. 3D: no corner of B is inside A, and A's corners inside B give the
+    overlap and the normal; the point is the centroid of the overlap (a patch: its
+    volume over the overlap cubed is far above PATCH_TO squared), like 2D's."""
     h = [0.4, 0.3, 0.5][:dim]
     geo = table([box_rows(h), box_rows([0.5] * dim)])
     delta = 0.01
@@ -501,9 +551,7 @@ def test_face_on_face_offset(dim):
     assert ov == pytest.approx(delta * (1 + BLEND / 4) ** 2 if dim == 2 else delta,
                                rel=1.01 * tilt * 0.6 / delta, abs=1e-14)
     np.testing.assert_allclose(n, -np.eye(dim)[-1], atol=1.01 * tilt + 1e-14)
-    expect = np.array([-0.1, 0.1, 0.5 - delta / 2])  # corners x = -0.1 (y = -0.2, 0.4)
-    if dim == 2:
-        expect[0] = 0.2
+    expect = np.array([0.2, 0.1, 0.5 - delta / 2])  # x in -0.1 .. 0.5, y -0.2 .. 0.4
     np.testing.assert_allclose(c, expect[[0, 2]] if dim == 2 else expect,
                                atol=tilt * 0.6 + 1e-14)
     if dim == 2:
@@ -594,8 +642,9 @@ def test_edge_sliding_along_edge():
 def test_tilted_box_on_box_point_moves_continuously(dim):
     """A small box on a big one, tilted through the flat position: the overlap is the
     deepest corner's and the point slides continuously from under one end to under the
-    other (the depth-weighted mean of the corners through), where jumping between tied
-    corners would make a resting box chatter."""
+    other (2D: the depth-weighted mean of the corners through; 3D: the centroid of the
+    intersection, a patch), where jumping between tied corners would make a resting box
+    chatter."""
     hx, hz, delta = 0.3, 0.1, 1e-3
     geo = table([box_rows([hx, hz] if dim == 2 else [hx, 0.2, hz]), box_rows([1.0] * dim)])
     pos = np.zeros((2, dim))
@@ -610,7 +659,10 @@ def test_tilted_box_on_box_point_moves_continuously(dim):
         np.testing.assert_allclose(n, -np.eye(dim)[-1], atol=1e-14)
         assert c[-1] == pytest.approx(1.0 - ov / 2, abs=1e-14)
         points.append(c)
-        if abs(a) == 2.0 * delta / hx:  # one end through: the middle of its corners
+        if dim == 3:
+            np.testing.assert_allclose(c, contact_ref(geo, 0, 1, 3, pos, rot)[2],
+                                       atol=1e-12)
+        elif abs(a) == 2.0 * delta / hx:  # one end through: the middle of its corners
             x = pos[0, 0] - np.sign(a) * (hx * np.cos(a) - hz * np.sin(abs(a)))
             assert c[0] == pytest.approx(x, abs=1e-14)
     points = np.array(points)
@@ -641,6 +693,39 @@ def test_staggered_squares_point_moves_continuously():
     corner_a = pos[0, 0] - h * np.cos(0.02) + h * np.sin(0.02)  # A's lower left
     assert xs[0] == pytest.approx(h, abs=1e-5) and xs[-1] == pytest.approx(corner_a)
     assert np.abs(np.diff(xs)).max() < 0.01 * (xs[0] - xs[-1])
+
+
+def test_staggered_cubes_point_moves_continuously():
+    """3D: a cube on a cube, staggered along the diagonal, turned through parallel about
+    the other diagonal. Each has one corner inside the other, and the deeper one gives
+    the overlap; the overlap is a patch, so the point is the centroid of the bodies'
+    intersection, which slides from one corner's side to the other's, through the
+    overlap's centre when the faces are parallel. The deeper side's corners alone
+    jumped it across the overlap in one step (and a cube packing never came to rest)."""
+    h, delta = 0.01, 2e-4
+    geo = table([box_rows([h] * 3)])
+    pos = np.array([[0.006, 0.006, 2 * h - delta], [0.0, 0.0, 0.0]])
+    axis = np.array([1.0, -1.0, 0.0]) / np.sqrt(2.0)
+    xs = []
+    for a in np.linspace(-0.02, 0.02, 801):
+        q = np.roll(Rotation.from_rotvec(a * axis).as_quat(), 1)
+        rot = np.array([q, [1.0, 0.0, 0.0, 0.0]])
+        ov, n, c = contact(3, 0, 0, pos, rot, geo)
+        ov_ref, n_ref, c_ref, rule = contact_ref(geo, 0, 0, 3, pos, rot)
+        assert rule.startswith("patch-")
+        assert ov == pytest.approx(ov_ref, abs=1e-15)
+        np.testing.assert_allclose(n, n_ref, atol=1e-13)
+        np.testing.assert_allclose(c, c_ref, atol=1e-12 * h)
+        xs.append(c[:2])
+        if a == 0.0:  # the overlap spans -0.004 (A's corner) .. 0.01 (B's) each way
+            assert ov == pytest.approx(delta, rel=1e-12)
+            np.testing.assert_allclose(n, [0.0, 0.0, -1.0], atol=1e-15)
+            np.testing.assert_allclose(c, [0.003, 0.003, h - delta / 2], atol=1e-15)
+    xs = np.array(xs) @ np.array([1.0, 1.0]) / np.sqrt(2.0)  # along the stagger
+    travel = abs(xs[0] - xs[-1])
+    corners = 0.014 * np.sqrt(2.0)  # how far the deeper side's corners jumped it
+    assert travel > 0.15 * corners  # towards the deeper end, either way
+    assert np.abs(np.diff(xs)).max() < 0.002 * corners
 
 
 def test_equal_boxes_stacked_in_line_push_straight_apart():

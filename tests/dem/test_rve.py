@@ -285,6 +285,23 @@ def test_frictionless_polygons_consolidate_denser(polygon_packing):
     assert out["coordination"] > frictional["coordination"]  # 4.0 vs 3.25
 
 
+def test_a_cube_packing_consolidates_and_comes_to_rest():
+    """60 cubes at friction 0.5 consolidate to 100 kPa with the unbalanced-force ratio
+    below its tolerance. Faces resting on faces and edges lying on faces are patches
+    whose point is the intersection's centroid; while it jumped between the features of
+    a patch (corners of either side, edge crossings) the packing never relaxed (0.04
+    after 60,000 steps for 100 cubes)."""
+    law = dem.LinearSpring(kn=1e5, kt=5e4, mu=0.5)
+    packing = rve.generate(3, 60, (0.8e-3, 1.2e-3), law, p0=1e5, seed=1, damping=0.5,
+                           max_relax_steps=40000,
+                           shape=lambda r, rng: dem.Box([r / np.sqrt(3.0)] * 3))
+    out = packing.response()
+    assert out["unbalanced"] < packing.tol
+    assert np.diag(out["stress"]) == pytest.approx([-1e5] * 3, rel=2e-3)
+    assert out["coordination"] > 4.0  # measured 4.7
+    assert 0.8 < out["void_ratio"] < 1.2  # 1.02: loose, frictional, as from the cloud
+
+
 def test_a_polygon_packing_consolidates_to_the_target_pressure(polygon_packing):
     out = polygon_packing.response()
     s = out["stress"]

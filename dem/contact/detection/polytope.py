@@ -127,13 +127,15 @@ point is moved, within the contact plane (its level along the normal kept), towa
 centroid of the bodies' intersection (:func:`overlap_centroid3`: each body's boundary
 triangles clipped by the other's faces, summed by the divergence theorem), with the
 weight going smoothly from 0 to 1 as ``q = sqrt(V / ov^3)`` goes from ``PATCH_FROM`` =
-6 to ``PATCH_TO`` = 12. ``q`` is about 1 for a cube's corner or a cube's edge across an
+3 to ``PATCH_TO`` = 6 (an edge on a face at an overlap of 1 % of its length, q = 10, is a
+patch). ``q`` is about 1 for a cube's corner or a cube's edge across an
 edge, 1 to 10 for the blunter vertices of random polyhedra, ``sqrt(L / ov)`` for an edge
 of length ``L`` lying on a face and ``L / ov`` for faces on faces (a few hundred in a
 packing), and the intersection's volume and centroid are continuous in the pose. Where
 the weight is 0 the point is the rule's, so the force stays the gradient of ``kn ov^2 /
 2`` there; on a patch the torque comes from the centroid instead (a face pressed on a
-face has none to speak of). The cost is the clipping: about 1 µs more per 3D contact.
+face has none to speak of). The cost is the clipping, only of triangles in the contact's
+slab: from 1.1 to 3.0 µs per box pair (docs/performance.md, Figure 3).
 
 Edge across edge (3D)
 ---------------------
@@ -1033,7 +1035,8 @@ def _polytope3(sa, a, sb, b, sx, sy, sz, pos, rot, geo):
     vol, ex, ey, ez = overlap_centroid3(
         sa, scale[sa], a00, a01, a02, a10, a11, a12, a20, a21, a22, pos[a, 0] - cx,
         pos[a, 1] - cy, pos[a, 2] - cz, sb, scale[sb], b00, b01, b02, b10, b11, b12, b20,
-        b21, b22, pos[b, 0] + sx - cx, pos[b, 1] + sy - cy, pos[b, 2] + sz - cz, geo)
+        b21, b22, pos[b, 0] + sx - cx, pos[b, 1] + sy - cy, pos[b, 2] + sz - cz, nx, ny,
+        nz, ov, geo)  # within ov / 2 of the point along n (twice that, for safety)
     u = (math.sqrt(vol / (ov * ov * ov)) - PATCH_FROM) / (PATCH_TO - PATCH_FROM)
     if u <= 0.0:
         return ov, nx, ny, nz, cx, cy, cz, it
@@ -1124,22 +1127,34 @@ def _rules3(sa, a, sb, b, sx, sy, sz, pos, rot, geo):
 @kernel
 def _clipped3(s_in, sc_in, q00, q01, q02, q10, q11, q12, q20, q21, q22, qx, qy, qz,
               s_cl, sc_cl, u00, u01, u02, u10, u11, u12, u20, u21, u22, ux, uy, uz,
-              buf, vstart, verts, fstart, faces, tstart, tris):
+              wx, wy, wz, slab, buf, placed, vstart, verts, fstart, faces, tstart, tris):
     """The part of polyhedron ``s_in``'s boundary inside polyhedron ``s_cl`` (placed
     at ``Q x + q`` and ``U x + u``): its contribution ``(V, Mx, My, Mz)`` to the volume
     of their intersection and to its first moment (divergence theorem: a fan of
     tetrahedra from the origin over each triangle clipped by the other's faces,
-    Sutherland-Hodgman, in ``buf`` (2, m, 3), m >= 3 + faces of ``s_cl``)."""
+    Sutherland-Hodgman, in ``buf`` (2, m, 3), m >= 3 + faces of ``s_cl``; the
+    vertices placed in ``placed`` (n, 4), n >= vertices of ``s_in``). The
+    intersection lies in the slab ``|w . x| <= slab``: triangles wholly outside it are
+    skipped unclipped."""
     vol, mx, my, mz = 0.0, 0.0, 0.0, 0.0
     v0 = vstart[s_in]
     f0, f1 = fstart[s_cl], fstart[s_cl + 1]
+    for v in range(v0, vstart[s_in + 1]):  # placed once, with their slab coordinate
+        lx, ly, lz = sc_in * verts[v, 0], sc_in * verts[v, 1], sc_in * verts[v, 2]
+        x = q00 * lx + q01 * ly + q02 * lz + qx
+        y = q10 * lx + q11 * ly + q12 * lz + qy
+        z = q20 * lx + q21 * ly + q22 * lz + qz
+        placed[v - v0, 0], placed[v - v0, 1], placed[v - v0, 2] = x, y, z
+        placed[v - v0, 3] = wx * x + wy * y + wz * z
     for t in range(tstart[s_in], tstart[s_in + 1]):
+        i0, i1, i2 = tris[t, 0], tris[t, 1], tris[t, 2]
+        h0, h1, h2 = placed[i0, 3], placed[i1, 3], placed[i2, 3]
+        if min(h0, h1, h2) > slab or max(h0, h1, h2) < -slab:
+            continue
         for k in range(3):
-            v = v0 + tris[t, k]
-            lx, ly, lz = sc_in * verts[v, 0], sc_in * verts[v, 1], sc_in * verts[v, 2]
-            buf[0, k, 0] = q00 * lx + q01 * ly + q02 * lz + qx
-            buf[0, k, 1] = q10 * lx + q11 * ly + q12 * lz + qy
-            buf[0, k, 2] = q20 * lx + q21 * ly + q22 * lz + qz
+            i = tris[t, k]
+            buf[0, k, 0], buf[0, k, 1], buf[0, k, 2] = (placed[i, 0], placed[i, 1],
+                                                        placed[i, 2])
         m, cur = 3, 0
         for f in range(f0, f1):
             nx = u00 * faces[f, 0] + u01 * faces[f, 1] + u02 * faces[f, 2]
@@ -1192,22 +1207,24 @@ def _clipped3(s_in, sc_in, q00, q01, q02, q10, q11, q12, q20, q21, q22, qx, qy, 
 @kernel
 def overlap_centroid3(sa, sca, a00, a01, a02, a10, a11, a12, a20, a21, a22, pax, pay, paz,
                       sb, scb, b00, b01, b02, b10, b11, b12, b20, b21, b22, pbx, pby, pbz,
-                      geo):
+                      wx, wy, wz, slab, geo):
     """Volume and centroid of the intersection of polyhedra A (at ``Ra x + pa``) and B
-    (at ``Rb x + pb``), placed about a point near it (round-off): ``(V, cx, cy, cz)``,
-    ``V = 0`` (and ``c = 0``) when they do not overlap."""
+    (at ``Rb x + pb``), placed about a point near it (round-off), which lies in the slab
+    ``|w . x| <= slab`` (``slab = inf``: anywhere): ``(V, cx, cy, cz)``, ``V = 0`` (and
+    ``c = 0``) when they do not overlap."""
     vstart, verts, fstart, faces, tstart, tris = (geo[2], geo[3], geo[4], geo[5], geo[6],
                                                   geo[7])
     m = 3 + max(fstart[sa + 1] - fstart[sa], fstart[sb + 1] - fstart[sb])
     buf = np.empty((2, m, 3))
+    placed = np.empty((max(vstart[sa + 1] - vstart[sa], vstart[sb + 1] - vstart[sb]), 4))
     va, ma, mb, mc = _clipped3(sa, sca, a00, a01, a02, a10, a11, a12, a20, a21, a22, pax,
                                pay, paz, sb, scb, b00, b01, b02, b10, b11, b12, b20, b21,
-                               b22, pbx, pby, pbz, buf, vstart, verts, fstart, faces,
-                               tstart, tris)
+                               b22, pbx, pby, pbz, wx, wy, wz, slab, buf, placed, vstart,
+                               verts, fstart, faces, tstart, tris)
     vb, na, nb, nc = _clipped3(sb, scb, b00, b01, b02, b10, b11, b12, b20, b21, b22, pbx,
                                pby, pbz, sa, sca, a00, a01, a02, a10, a11, a12, a20, a21,
-                               a22, pax, pay, paz, buf, vstart, verts, fstart, faces,
-                               tstart, tris)
+                               a22, pax, pay, paz, wx, wy, wz, slab, buf, placed, vstart,
+                               verts, fstart, faces, tstart, tris)
     vol = va + vb
     if not vol > 0.0:
         return 0.0, 0.0, 0.0, 0.0

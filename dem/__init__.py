@@ -18,13 +18,15 @@ from .contact.model import ContactModel
 from .neighbors import Box as Domain
 from .observers import (CollectionTracker, EnergyTracker, ParticleTracker, Periodic,
                         Record, kinetic_energy, stress_and_tangent)
-from .shapes import Box, ConvexPolygon, ConvexPolyhedron, CustomShape, Plane, Shape, Sphere
+from .shapes import (Box, Compound, ConvexPolygon, ConvexPolyhedron, CustomShape, Plane,
+                     Shape, Sphere)
 from .simulation import DT_FACTOR, Simulation, SimulationError, critical_time_step
 from .state import Bodies
 from .state_objects import ShapeScale, SphereRadius, StateObject
 
 __all__ = [
-    "Bodies", "Box", "CollectionTracker", "ConvexPolygon", "ConvexPolyhedron", "CustomShape",
+    "Bodies", "Box", "CollectionTracker", "Compound", "ConvexPolygon", "ConvexPolyhedron",
+    "CustomShape",
     "ShapeScale", "ContactModel", "DT_FACTOR", "Domain", "Elastic",
     "EnergyTracker", "HertzMindlin", "Law", "LinearSpring", "ParticleTracker", "Periodic",
     "Plane", "Record", "Shape", "Simulation", "SimulationError", "Sphere", "SphereRadius",

@@ -204,7 +204,9 @@ def build_wall_pairs(pos, radius, sphere_ids, wall_ids, normal, skin, pairs_out)
 def carry_history(old_pairs, old_hist, new_pairs, new_hist_out):
     """Copy history rows whose pair key ``(i, j)`` is in both lists (both sorted).
 
-    Rows of new pairs start at zero. Returns the number of rows carried.
+    A key may repeat (a compound's parts: one row per pair of parts, in the same order
+    in both lists): the k-th row of a run carries the k-th row of the old run. Rows of
+    new pairs start at zero. Returns the number of rows carried.
     """
     new_hist_out[:] = 0.0
     a = 0
@@ -217,6 +219,7 @@ def carry_history(old_pairs, old_hist, new_pairs, new_hist_out):
         if a < n_old and old_pairs[a, 0] == i and old_pairs[a, 1] == j:
             new_hist_out[b, :] = old_hist[a, :]
             carried += 1
+            a += 1
     return carried
 
 

@@ -173,7 +173,7 @@ def _shape_summary(sim, out):
         g = sim.pgeom[t]
         ov, n, c = g[:, 0], g[:, 1:1 + d], g[:, 4:4 + d]
         pj = b.pos[j] + nl.img[t] @ sim._hmat.T
-        ri, rj = b.radius[i], b.radius[j]
+        ri, rj = sim.contact_radii()[0][t].T
         kn, kt = _stiffness(sim, "pp", ov, ri * rj / (ri + rj), b.mat_id[i], b.mat_id[j])
         out["i"].append(i), out["j"].append(j), out["normal"].append(n)
         out["overlap"].append(ov)
@@ -188,7 +188,8 @@ def _shape_summary(sim, out):
         i, w = wp[t, 0], wp[t, 1]
         g = sim.wgeom[t]
         ov, n, c = g[:, 0], g[:, 1:1 + d], g[:, 4:4 + d]
-        kn, kt = _stiffness(sim, "pw", ov, b.radius[i], b.mat_id[i], b.mat_id[w])
+        kn, kt = _stiffness(sim, "pw", ov, sim.contact_radii()[1][t], b.mat_id[i],
+                            b.mat_id[w])
         arm = c - b.pos[i]
         out["i"].append(i), out["j"].append(w), out["normal"].append(n)
         out["overlap"].append(ov)
@@ -326,14 +327,18 @@ def elastic_energy(sim):
     b, nl = sim.bodies, sim.neighbors
     e = 0.0
     if sim.shaped:
+        radii = sim.contact_radii()
         for bucket, pairs, hist, geom, tab in (
                 ("pp", nl.pairs, sim.hist, sim.pgeom, sim._params_pp),
                 ("pw", nl.wall_pairs, sim.whist, sim.wgeom, sim._params_pw)):
             if not pairs.shape[0]:
                 continue
             i, j = pairs[:, 0], pairs[:, 1]
-            ri, rj = b.radius[i], b.radius[j]
-            r_eff = ri * rj / (ri + rj) if bucket == "pp" else ri
+            if bucket == "pp":
+                ri, rj = radii[0].T
+                r_eff = ri * rj / (ri + rj)
+            else:
+                r_eff = radii[1]
             e += contact_energy(sim.model.kind(bucket).code, geom[:, 0].copy(),
                                 np.ascontiguousarray(r_eff), tab, b.mat_id[i], b.mat_id[j],
                                 hist, np.flatnonzero(geom[:, 0] > 0.0))

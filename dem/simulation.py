@@ -300,6 +300,8 @@ class Simulation:
         old = (nl.pairs, getattr(self, "hist", None), getattr(nl, "wall_pairs", None),
                getattr(self, "whist", None))
         nl.build(b)
+        if self.shaped and self._has_parts:
+            self._expand_parts()
         if self.cell is not None:
             self._cellref[:] = np.linalg.inv(self.cell.h)
         m, mw, d, nr = nl.pairs.shape[0], nl.wall_pairs.shape[0], self.dim, b.n_rot
@@ -496,7 +498,8 @@ class Simulation:
         """Buckets of the scene's kinds and the loop compiled for them."""
         b = self.bodies
         force_admm = self.detection == "admm"
-        kinds = sorted({int(k) for k in np.unique(b.kind) if k != Shape.PLANE})
+        self._part_table()
+        kinds = sorted({int(k) for k in np.unique(self._ekind) if k != Shape.PLANE})
         self._bucket_keys = [(ka, kb) for ka in kinds for kb in kinds if ka <= kb]
         self._bucket_methods = np.array([method_for(ka, kb, force_admm)
                                          for ka, kb in self._bucket_keys], np.int64)
@@ -514,6 +517,63 @@ class Simulation:
             self.dim, tuple(sorted(set(self._bucket_methods.tolist()))),
             tuple(sorted(set(self._wall_methods.tolist()))), self.model.kind("pp").code,
             self.model.kind("pw").code, periodic=periodic, custom_sdf=custom)
+
+    def _part_table(self):
+        """The parts detection works on: one per body, one per convex part of a
+        compound (body-frame poses from the shape table's part pool)."""
+        b, t, d = self.bodies, self.bodies.table, self.dim
+        comp = np.flatnonzero(b.kind == Shape.COMPOUND)
+        count = np.ones(b.n, np.int64)
+        rows = b.shape[comp].astype(np.int64)
+        count[comp] = t.cstart[rows + 1] - t.cstart[rows]
+        self._estart = np.concatenate(([0], np.cumsum(count))).astype(np.int64)
+        self._ecount = count
+        self._has_parts = comp.size > 0
+        ebody = np.repeat(np.arange(b.n, dtype=np.int64), count)
+        self._ekind = b.kind[ebody].astype(np.int64)
+        self._eshape = b.shape[ebody].astype(np.int64)
+        ne = ebody.size
+        eoff, eq, eprad = np.zeros((ne, 3)), np.zeros((ne, 4)), np.full(ne, -1.0)
+        if d == 3:
+            eq[:, 0] = 1.0
+        for body, s in zip(comp, rows):
+            e = slice(self._estart[body], self._estart[body + 1])
+            pool = slice(t.cstart[s], t.cstart[s + 1])
+            self._ekind[e] = t.part_kind[pool]
+            self._eshape[e] = t.part_row[pool]
+            eoff[e], eq[e], eprad[e] = t.part_off[pool], t.part_rot[pool], t.part_rad[pool]
+        if not self._has_parts:  # the kernel reads the body arrays themselves
+            ebody, eoff, eq, eprad = ebody[:0], eoff[:0], eq[:0], eprad[:0]
+        self._ebody, self._eoff, self._eq, self._eprad = ebody, eoff, eq, eprad
+        self._epos = np.zeros((ne, d))
+        self._erot = np.zeros((ne, b.rot.shape[1]))
+        self._erad = np.zeros(ne)
+        self._enormal = np.zeros((ne, d))
+
+    def _expand_parts(self):
+        """One row per pair of parts in the lists just built (runs in part order)."""
+        nl, count = self.neighbors, self._ecount
+        reps = count[nl.pairs[:, 0]] * count[nl.pairs[:, 1]]
+        nl.pairs = np.repeat(nl.pairs, reps, axis=0)
+        nl.img = np.repeat(nl.img, reps, axis=0)
+        nl.wall_pairs = np.repeat(nl.wall_pairs, count[nl.wall_pairs[:, 0]], axis=0)
+
+    def _part_ids(self, pairs):
+        """The parts (m, 2) of the rows of an expanded list: the r-th row of the run of
+        (i, j) is parts (r // n_j, r % n_j) of i and j."""
+        m = pairs.shape[0]
+        if not self._has_parts:
+            return pairs
+        out = np.zeros((m, 2), np.int32)
+        if m == 0:
+            return out
+        rows = np.arange(m)
+        new = np.r_[True, np.any(pairs[1:] != pairs[:-1], axis=1)]
+        r = rows - np.maximum.accumulate(np.where(new, rows, 0))
+        nj = self._ecount[pairs[:, 1]]
+        out[:, 0] = self._estart[pairs[:, 0]] + r // nj
+        out[:, 1] = self._estart[pairs[:, 1]] + r % nj
+        return out
 
     def _shape_rebuild(self, old):
         b, nl = self.bodies, self.neighbors
@@ -536,17 +596,19 @@ class Simulation:
         """Pairs and wall pairs grouped by bucket; each body's pair and wall rows."""
         b, nl = self.bodies, self.neighbors
         n, m, mw = b.n, nl.pairs.shape[0], nl.wall_pairs.shape[0]
-        kinds = b.kind
+        self._parts = self._part_ids(nl.pairs)
+        self._wparts = self._part_ids(nl.wall_pairs)
+        kinds = self._ekind
         lut = np.full((len(Shape), len(Shape)), -1, np.int64)  # (kind, kind) -> bucket
         for q, (ka, kb) in enumerate(self._bucket_keys):
             lut[ka, kb] = lut[kb, ka] = q
-        code = lut[kinds[nl.pairs[:, 0]], kinds[nl.pairs[:, 1]]]
+        code = lut[kinds[self._parts[:, 0]], kinds[self._parts[:, 1]]]
         self._order = np.argsort(code, kind="stable").astype(np.int64)
         self._bstart = np.searchsorted(code[self._order],
                                        np.arange(len(self._bucket_keys) + 1)).astype(np.int64)
         wlut = np.full(len(Shape), -1, np.int64)
         wlut[self._wall_kinds] = np.arange(len(self._wall_kinds))
-        wcode = wlut[kinds[nl.wall_pairs[:, 0]]]
+        wcode = wlut[kinds[self._wparts[:, 0]]]
         self._worder = np.argsort(wcode, kind="stable").astype(np.int64)
         self._wbstart = np.searchsorted(wcode[self._worder],
                                         np.arange(len(self._wall_kinds) + 1)).astype(np.int64)
@@ -559,17 +621,23 @@ class Simulation:
 
     def _shape_call(self, n_steps, prime, resume):
         b, nl = self.bodies, self.neighbors
+        if self._has_parts:
+            parts = (self._ekind, self._eshape, self._epos, self._erot, self._erad,
+                     self._enormal)
+        else:
+            parts = (self._kind64, self._shape64, b.pos, b.rot, b.radius, b.normal)
         return self._shape_kernel(
             n_steps, prime, resume, self.dt, self.gravity, self.damping, nl.skin,
             self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel, b.force, b.torque, b.radius,
             b.mass, self._inv_mass, self._inv_inertia, self._fixed, b.normal, b.mat_id,
-            self._kind64, self._shape64, nl.pos_ref, self._grow(), self._hmat,
+            nl.pos_ref, self._grow(), self._hmat,
             self._lgrad, self._cellref, self.cell is not None,
-            b.table.arrays(), self.admm_tol, self.admm_max_iter,
-            nl.pairs, nl.img, self._order, self._bstart, self._bucket_methods, self.touch,
+            b.table.arrays(), self.admm_tol, self.admm_max_iter, self._has_parts,
+            self._ebody, self._eoff, self._eq, self._eprad, *parts,
+            nl.pairs, self._parts, nl.img, self._order, self._bstart, self._bucket_methods, self.touch,
             self.hist, self.warm, self.iters, self.pgeom, self.fpair, self.tpair,
             self._inc_start, self._inc_list, self._params_pp,
-            nl.wall_pairs, self._worder, self._wbstart, self._wall_methods, self.whist,
+            nl.wall_pairs, self._wparts, self._worder, self._wbstart, self._wall_methods, self.whist,
             self.wwarm, self.witers, self.wgeom, self.wforce, self.wtorque,
             self._winc_start, self._winc_list, self._params_pw, self._status,
             self.wall_work)
@@ -666,6 +734,15 @@ class Simulation:
 
         self.prime()
         return contact_summary(self)
+
+    def contact_radii(self):
+        """Radii [m] of the touching parts: ``(m, 2)`` for the pair rows and ``(mw,)``
+        for the wall rows (the bodies' radii, but a compound's part's own)."""
+        self.prime()
+        b, nl = self.bodies, self.neighbors
+        if self.shaped and self._has_parts:
+            return self._erad[self._parts], self._erad[self._wparts[:, 0]]
+        return b.radius[nl.pairs], b.radius[nl.wall_pairs[:, 0]]
 
     def wall_forces(self):
         """Total contact force [N] on each wall body: dict ``{body index: (d,) array}``."""

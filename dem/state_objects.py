@@ -86,6 +86,10 @@ class ShapeScale(RK2):
 
     def _bind(self, sim):
         b = sim.bodies
+        if np.any(b.table.kind[self.rows] == 6) or np.any(np.isin(self.rows,
+                                                                   b.table.part_row)):
+            raise ValueError("ShapeScale cannot grow a compound (dem.Compound) or its "
+                             "parts: scale the parts' shapes before building the bodies")
         ids = np.flatnonzero(np.isin(b.shape, self.rows))
         s = b.table.scale[b.shape[ids]]
         self._base = (ids, b.radius[ids] / s, b.mass[ids] / s ** b.dim,

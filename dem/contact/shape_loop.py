@@ -11,6 +11,12 @@ differences:
   fixed when the pair list is made, not tested per contact; ADMM is compiled only into
   the loops of scenes that use it (:func:`shape_stepper`), and sphere-only scenes run
   the loop of :mod:`dem.contact.loops`, which has no shape code at all.
+* **Detection works on parts.** A body is one part; a compound
+  (:class:`~dem.shapes.Compound`) one per convex piece, whose world pose follows its
+  body's at the start of every force pass. The pair lists hold a row per pair of
+  parts, so each touching pair of parts is a contact of its own (history, warm start,
+  point); the law and the torques use the bodies' centres and velocities and the
+  parts' radii. Without compounds the part arrays are the body arrays.
 * **Rigid bodies rotate with anisotropic inertia.** In 3D the angular momentum is kicked
   in the body frame and the free rotation over a step is the symmetric splitting of the
   free rigid body into rotations about the three principal axes (1, 2, 3, 2, 1 with
@@ -223,17 +229,24 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
 
     def run_shape_steps(n_steps, prime, resume, dt, gravity, damping, skin, overlap_limit,
                         pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass,
-                        inv_inertia, is_fixed, normal, mat_id, kind, shape, pos_ref, grow,
-                        hmat, lgrad, cellref, is_cell, geo, tol, max_iter,
-                        pairs, img, order, bstart, bmethod, touch, hist, warm, iters,
+                        inv_inertia, is_fixed, normal, mat_id, pos_ref, grow,
+                        hmat, lgrad, cellref, is_cell, geo, tol, max_iter, has_parts, ebody,
+                        eoff, eq, eprad, ekind, eshape, epos, erot, erad, enormal,
+                        pairs, parts, img, order, bstart, bmethod, touch, hist, warm, iters,
                         pgeom, fpair, tpair, inc_start, inc_list, params_pp,
-                        wpairs, worder, wbstart, wbmethod, whist, wwarm, witers, wgeom,
+                        wpairs, wparts, worder, wbstart, wbmethod, whist, wwarm, witers, wgeom,
                         wforce, wtorque, winc_start, winc_list, params_pw,
                         status_out, work_out):
         """Advance ``n_steps``; returns the number of completed steps (see
         :func:`dem.contact.loops.stepper` for ``prime``/``resume``/status and for the
         deforming cell: ``hmat`` advanced by ``lgrad``, ``cellref[0]`` = H^-1 at the
-        Verlet build, ``is_cell``)."""
+        Verlet build, ``is_cell``).
+
+        Detection works on parts (``e*`` arrays, indexed by ``parts``/``wparts``): a
+        body is one part, a compound one per convex part. With ``has_parts`` each part's
+        world pose follows its body's every step (``ebody``, body-frame offset ``eoff``
+        and orientation ``eq``, radius ``eprad``, or the body's where negative);
+        without, the part arrays are the body arrays themselves."""
         n = pos.shape[0]
         status_out[0] = OK
         status_out[3] = 0
@@ -272,27 +285,35 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
             else:
                 force[:, :] = 0.0
                 torque[:, :] = 0.0
-            # ---- 3. pair buckets: each pair writes its own rows
+            if has_parts:  # the parts follow their bodies
+                for e in numba.prange(ebody.shape[0]):
+                    _part_pose(e, DIM, ebody, eoff, eq, eprad, pos, rot, radius, normal,
+                               epos, erot, erad, enormal)
+            # ---- 3. pair buckets: each pair writes its own rows (parts pi, pj of i, j)
             for bi in range(bmethod.shape[0]):
                 meth = bmethod[bi]
                 for q in numba.prange(bstart[bi], bstart[bi + 1]):
                     k = order[q]
                     i = pairs[k, 0]
                     j = pairs[k, 1]
+                    pi = parts[k, 0]
+                    pj = parts[k, 1]
                     sx, sy, sz = 0.0, 0.0, 0.0
                     if PERIODIC:
                         sx, sy, sz = _image_shift(DIM, hmat, img, k)
                     # the home body A has the lower kind; the law gives the force on B;
                     # B is j's image, so if A is j the shift goes the other way
-                    swap = kind[j] < kind[i]
+                    swap = ekind[pj] < ekind[pi]
                     a = j if swap else i
                     b = i if swap else j
+                    pa = pj if swap else pi
+                    pb = pi if swap else pj
                     if swap:
                         sx, sy, sz = -sx, -sy, -sz
                     if U_ADMM and meth == M_ADMM:
                         st, ov, nx, ny, nz, cx, cy, cz, nit = _ADMM(
-                            DIM, kind[a], shape[a], a, kind[b], shape[b], b, sx, sy, sz,
-                            pos, rot, normal, geo, warm, k, tol, max_iter)
+                            DIM, ekind[pa], eshape[pa], pa, ekind[pb], eshape[pb], pb, sx,
+                            sy, sz, epos, erot, enormal, geo, warm, k, tol, max_iter)
                         iters[k] = nit
                         if st != 0:
                             status_out[0] = NOCONVERGE
@@ -300,10 +321,10 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                             status_out[2] = j
                     else:
                         ov, nx, ny, nz, cx, cy, cz = pair_exact(
-                            DIM, meth, a, b, sx, sy, sz, pos, rot, radius, shape, geo)
+                            DIM, meth, pa, pb, sx, sy, sz, epos, erot, erad, eshape, geo)
                     pair_force(DIM, PP, DEFORM, lgrad, k, i, j, a, b, swap, sx, sy, sz,
-                               ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel, radius,
-                               inv_mass, mat_id, params_pp, hist, touch, fpair, tpair,
+                               ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel, erad[pa],
+                               erad[pb], inv_mass, mat_id, params_pp, hist, touch, fpair, tpair,
                                pgeom, hdt, overlap_limit, status_out)
             # ---- 4. wall buckets: body i against wall w (home body: i)
             work = 0.0
@@ -313,20 +334,23 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                     k = worder[q]
                     i = wpairs[k, 0]
                     w = wpairs[k, 1]
+                    pi = wparts[k, 0]
+                    pw = wparts[k, 1]
                     if W_ADM and meth == W_ADMM:
                         st, ov, nx, ny, nz, cx, cy, cz, nit = _ADMM(
-                            DIM, kind[i], shape[i], i, PLANE, 0, w, 0.0, 0.0, 0.0, pos,
-                            rot, normal, geo, wwarm, k, tol, max_iter)
+                            DIM, ekind[pi], eshape[pi], pi, PLANE, 0, pw, 0.0, 0.0, 0.0,
+                            epos, erot, enormal, geo, wwarm, k, tol, max_iter)
                         witers[k] = nit
                         if st != 0:
                             status_out[0] = NOCONVERGE
                             status_out[1] = i
                             status_out[2] = w
                     else:
-                        ov, nx, ny, nz, cx, cy, cz = wall_exact(DIM, meth, i, w, pos, rot,
-                                                                 radius, normal, shape, geo)
+                        ov, nx, ny, nz, cx, cy, cz = wall_exact(DIM, meth, pi, pw, epos,
+                                                                 erot, erad, enormal, eshape,
+                                                                 geo)
                     work += wall_force(DIM, PW, k, i, w, ov, nx, ny, nz, cx, cy, cz, pos,
-                                       vel, ang_vel, radius, inv_mass, mat_id, params_pw,
+                                       vel, ang_vel, erad[pi], inv_mass, mat_id, params_pw,
                                        whist, wforce, wtorque, wgeom, hdt, overlap_limit,
                                        status_out)
             # ---- 5. per body: pair rows, then wall rows, in order; then the kick
@@ -455,9 +479,10 @@ def wall_exact(dim, meth, i, w, pos, rot, radius, normal, shape, geo):
 
 @kernel
 def pair_force(dim, code, deform, lgrad, k, i, j, a, b, swap, sx, sy, sz, ov, nx, ny, nz,
-               cx, cy, cz, pos, vel, ang_vel, radius, inv_mass, mat_id, params, hist,
+               cx, cy, cz, pos, vel, ang_vel, ra, rb, inv_mass, mat_id, params, hist,
                touch, fpair, tpair, pgeom, dt, overlap_limit, status_out):
-    """Law and rows of pair k (bodies i < j; A = a, B = b + shift): force on j in
+    """Law and rows of pair k (bodies i < j; A = a, B = b + shift; ``ra``, ``rb`` the
+    radii of the touching parts): force on j in
     ``fpair[k]``, torques on i and j in ``tpair[k]``, geometry in ``pgeom[k]``. In a
     deforming cell (``deform``) the bodies' velocities are fluctuations about the
     affine field ``L x``, whose difference across the branch vector is added."""
@@ -475,7 +500,7 @@ def pair_force(dim, code, deform, lgrad, k, i, j, a, b, swap, sx, sy, sz, ov, nx
         pgeom[k, 0] = 0.0
         return
     touch[k] = 1
-    if ov > overlap_limit * min(radius[a], radius[b]):
+    if ov > overlap_limit * min(ra, rb):
         status_out[0] = OVERLAP
         status_out[1] = i
         status_out[2] = j
@@ -486,7 +511,6 @@ def pair_force(dim, code, deform, lgrad, k, i, j, a, b, swap, sx, sy, sz, ov, nx
     rbz = cz - pos[b, 2] - sz if dim == 3 else 0.0
     vax, vay, vaz = _velocity_at(dim, vel, ang_vel, a, rax, ray, raz)
     vbx, vby, vbz = _velocity_at(dim, vel, ang_vel, b, rbx, rby, rbz)
-    ra, rb = radius[a], radius[b]
     r_eff = ra * rb / (ra + rb)
     im = inv_mass[a] + inv_mass[b]
     m_eff = 1.0 / im if im > 0.0 else 0.0  # two fixed bodies: no dashpot
@@ -530,10 +554,11 @@ def pair_force(dim, code, deform, lgrad, k, i, j, a, b, swap, sx, sy, sz, ov, nx
 
 
 @kernel
-def wall_force(dim, code, k, i, w, ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel, radius,
+def wall_force(dim, code, k, i, w, ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel, ri,
                inv_mass, mat_id, params, whist, wforce, wtorque, wgeom, dt, overlap_limit,
                status_out):
-    """Law and rows of wall pair k (body i, wall w); returns the wall's power on i [W]."""
+    """Law and rows of wall pair k (body i, its touching part of radius ``ri``, wall w);
+    returns the wall's power on i [W]."""
     if ov <= 0.0:
         whist[k, 0] = 0.0
         whist[k, 1] = 0.0
@@ -544,7 +569,7 @@ def wall_force(dim, code, k, i, w, ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel
             wtorque[k, c] = 0.0
         wgeom[k, 0] = 0.0
         return 0.0
-    if ov > overlap_limit * radius[i]:
+    if ov > overlap_limit * ri:
         status_out[0] = OVERLAP
         status_out[1] = i
         status_out[2] = w
@@ -555,7 +580,7 @@ def wall_force(dim, code, k, i, w, ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel
     vwz = vel[w, 2] if dim == 3 else 0.0
     m = 1.0 / inv_mass[i] if inv_mass[i] > 0.0 else 0.0
     fx, fy, fz = _apply_law(code, ov, nx, ny, nz, vwx - vix, vwy - viy, vwz - viz,
-                            radius[i], m, params, mat_id[i], mat_id[w], whist, k, dt)
+                            ri, m, params, mat_id[i], mat_id[w], whist, k, dt)
     # the body gets -f at arm r
     wforce[k, 0] = -fx
     wforce[k, 1] = -fy
@@ -574,6 +599,31 @@ def wall_force(dim, code, k, i, w, ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel
     wgeom[k, 5] = cy
     wgeom[k, 6] = cz
     return -(fx * vwx + fy * vwy + fz * vwz)
+
+
+@kernel(inline=True)
+def _part_pose(e, dim, ebody, eoff, eq, eprad, pos, rot, radius, normal, epos, erot, erad,
+               enormal):
+    """World pose of part e from its body's: ``pos + R eoff``, ``rot * eq`` (for a body
+    that is its own part, offset zero and orientation identity: exactly the body's)."""
+    b = ebody[e]
+    ox, oy, oz = to_world(dim, rot, b, eoff[e, 0], eoff[e, 1], eoff[e, 2])
+    epos[e, 0] = pos[b, 0] + ox
+    epos[e, 1] = pos[b, 1] + oy
+    enormal[e, 0] = normal[b, 0]
+    enormal[e, 1] = normal[b, 1]
+    if dim == 2:
+        erot[e, 0] = rot[b, 0] + eq[e, 0]
+    else:
+        epos[e, 2] = pos[b, 2] + oz
+        enormal[e, 2] = normal[b, 2]
+        w, x, y, z = rot[b, 0], rot[b, 1], rot[b, 2], rot[b, 3]
+        qw, qx, qy, qz = eq[e, 0], eq[e, 1], eq[e, 2], eq[e, 3]
+        erot[e, 0] = w * qw - x * qx - y * qy - z * qz
+        erot[e, 1] = w * qx + x * qw + y * qz - z * qy
+        erot[e, 2] = w * qy - x * qz + y * qw + z * qx
+        erot[e, 3] = w * qz + x * qy - y * qx + z * qw
+    erad[e] = radius[b] if eprad[e] < 0.0 else eprad[e]
 
 
 @kernel(inline=True)

@@ -73,7 +73,12 @@ _TABLE_SPEC = (("kind", (), _I8, "ns"), ("param", (4,), _F8, "ns"), ("scale", ()
                ("brad", (), _F8, "ns"), ("xform", (12,), _F8, "ns"),
                ("vstart", (), _I8, "ns+1"), ("verts", (3,), _F8, "vstart"),
                ("fstart", (), _I8, "ns+1"), ("faces", (4,), _F8, "fstart"),
-               ("tstart", (), _I8, "ns+1"), ("tris", (3,), _I8, "tstart"))
+               ("tstart", (), _I8, "ns+1"), ("tris", (3,), _I8, "tstart"),
+               ("cstart", (), _I8, "ns+1"), ("part_kind", (), _I8, "cstart"),
+               ("part_row", (), _I8, "cstart"), ("part_off", (3,), _F8, "cstart"),
+               ("part_rot", (4,), _F8, "cstart"), ("part_rad", (), _F8, "cstart"))
+#: the compound part pool, absent from files written before compounds existed
+_COMPOUND_NAMES = ("cstart", "part_kind", "part_row", "part_off", "part_rot", "part_rad")
 
 
 def _trailing(key, dim):
@@ -108,6 +113,10 @@ def _read_table(path, group, n_bodies_shape):
     if ns < 0:
         raise ValueError(f"{path}: bodies/shape_table/kind must be one-dimensional")
     for name, tail, dtype, length in _TABLE_SPEC:
+        if name in _COMPOUND_NAMES and "cstart" not in group:
+            if name == "cstart":
+                t.cstart = np.zeros(ns + 1, np.int64)
+            continue
         if name not in group:
             raise ValueError(f"{path}: bodies/shape_table/{name} is missing")
         if length == "ns":
@@ -122,9 +131,18 @@ def _read_table(path, group, n_bodies_shape):
             rows = int(start[-1])
         setattr(t, name, _checked(path, f"bodies/shape_table/{name}", group[name],
                                   (rows, *tail), dtype))
-    if np.any((t.kind < 2) | (t.kind > 4)):
+    if np.any(((t.kind < 2) | (t.kind > 4)) & (t.kind != 6)):
         raise ValueError(f"{path}: bodies/shape_table/kind holds an unknown or "
                          f"non-storable shape kind")
+    parts = np.diff(t.cstart)
+    row_kind = np.where(t.part_row >= 0, t.kind[np.clip(t.part_row, 0, max(ns - 1, 0))], 0)
+    if (np.any((parts > 0) != (t.kind == 6)) or np.any(t.part_row >= ns)
+            or np.any((t.part_row < 0) != (t.part_kind == 0))
+            or np.any(row_kind != t.part_kind) or np.any(t.part_kind == 6)
+            or not (np.all(np.isfinite(t.part_off)) and np.all(np.isfinite(t.part_rot))
+                    and np.all(t.part_rad > 0.0))):
+        raise ValueError(f"{path}: bodies/shape_table holds an inconsistent compound "
+                         f"part pool")
     for s in range(ns):
         nv = t.vstart[s + 1] - t.vstart[s]
         tri = t.tris[t.tstart[s]:t.tstart[s + 1]]

@@ -169,8 +169,9 @@ def shape_surfaces(bodies):
     Vertex ``v`` of body ``b`` (shape row ``s``) sits at
     ``pos[b] + R(rot[b]) @ (scale[s] * verts[v])``. 3D shapes bring their boundary
     triangles (``ShapeTable.tris``); a 2D polygon (or rectangle) is fanned from its
-    first vertex. Bodies come in ascending index order, each with a contiguous block of
-    points and of triangles. Custom shapes (no vertices) are left out.
+    first vertex. A compound draws each of its polytope parts. Bodies come in ascending
+    index order, each with a contiguous block of points and of triangles. Custom shapes
+    and spheres (no vertices) are left out.
 
     Parameters
     ----------
@@ -186,22 +187,40 @@ def shape_surfaces(bodies):
     t, d = bodies.table, bodies.dim
     ids = np.flatnonzero(np.isin(bodies.kind, SURFACE_KINDS) & (bodies.shape >= 0))
     rows = bodies.shape[ids].astype(np.int64)
+    pos3 = np.zeros((bodies.n, 3))
+    pos3[:, :d] = bodies.pos
+    place = pos3[ids]  # each drawn piece: its origin and rotation in the world
+    turn = rotation_matrices(bodies.rot[ids])
+    comp = np.flatnonzero(bodies.kind == Shape.COMPOUND)
+    if comp.size:  # a compound draws its polytope parts
+        crow = bodies.shape[comp].astype(np.int64)
+        count = t.cstart[crow + 1] - t.cstart[crow]
+        owner = np.repeat(comp, count)
+        pool = np.concatenate([np.arange(t.cstart[s], t.cstart[s + 1]) for s in crow])
+        poly = t.part_row[pool] >= 0
+        owner, pool = owner[poly], pool[poly]
+        body_turn = rotation_matrices(bodies.rot[owner])
+        part_rot = t.part_rot[pool] if d == 3 else t.part_rot[pool, :1]
+        ids = np.concatenate([ids, owner])
+        rows = np.concatenate([rows, t.part_row[pool]])
+        place = np.vstack([place, pos3[owner] + np.einsum("bij,bj->bi", body_turn,
+                                                          t.part_off[pool])])
+        turn = np.concatenate([turn, body_turn @ rotation_matrices(part_rot)])
+        order = np.argsort(ids, kind="stable")
+        ids, rows, place, turn = ids[order], rows[order], place[order], turn[order]
     n_verts = t.vstart[rows + 1] - t.vstart[rows]
     n_tris = (t.tstart[rows + 1] - t.tstart[rows]) if d == 3 else n_verts - 2
     keep = (n_verts >= 3) & (n_tris > 0)
     ids, rows, n_verts, n_tris = ids[keep], rows[keep], n_verts[keep], n_tris[keep]
+    place, turn = place[keep], turn[keep]
     p_off = np.concatenate(([0], np.cumsum(n_verts)))
     c_off = np.concatenate(([0], np.cumsum(n_tris)))
     points = np.zeros((p_off[-1], 3))
     cells = np.zeros((c_off[-1], 3), np.int32)
-    pos3 = np.zeros((bodies.n, 3))
-    pos3[:, :d] = bodies.pos
     for s in np.unique(rows):
-        here = np.flatnonzero(rows == s)  # bodies sharing shape row s
-        b = ids[here]
+        here = np.flatnonzero(rows == s)  # pieces sharing shape row s
         local = t.scale[s] * t.verts[t.vstart[s]:t.vstart[s + 1]]
-        world = pos3[b, None, :] + np.einsum("bij,vj->bvi",
-                                             rotation_matrices(bodies.rot[b]), local)
+        world = place[here, None, :] + np.einsum("bij,vj->bvi", turn[here], local)
         points[p_off[here][:, None] + np.arange(local.shape[0])] = world
         if d == 3:
             tris = t.tris[t.tstart[s]:t.tstart[s + 1]]

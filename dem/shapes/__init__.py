@@ -10,6 +10,7 @@ shapes themselves.
 from enum import IntEnum
 
 from .box import Box
+from .compound import Compound
 from .custom import CustomShape
 from .plane import Plane, sdf_plane
 from .polygon import ConvexPolygon
@@ -26,7 +27,8 @@ class Shape(IntEnum):
     POLYGON = 3     # convex, 2D
     POLYHEDRON = 4  # convex, 3D
     CUSTOM = 5      # a user-defined SDF
+    COMPOUND = 6    # a union of convex parts (each part its own contact)
 
 
-__all__ = ["Box", "ConvexPolygon", "ConvexPolyhedron", "CustomShape", "Plane", "Shape",
+__all__ = ["Box", "Compound", "ConvexPolygon", "ConvexPolyhedron", "CustomShape", "Plane", "Shape",
            "Sphere", "sdf_plane", "sdf_sphere"]

@@ -28,6 +28,13 @@ frame axes; 2D shapes have ``z = 0``):
 ``xform (ns, 12) float64``
     Custom shapes: the user's SDF is evaluated at ``R @ x + c`` for a principal-frame
     point ``x``; rows hold ``R`` (row-major, 9) and ``c`` (3). Identity otherwise.
+``cstart (ns + 1,) int64``, ``part_kind``, ``part_row (np,) int64``, ``part_off (np, 3)``,
+``part_rot (np, 4)``, ``part_rad (np,) float64``
+    Compounds (:class:`~dem.shapes.Compound`): the parts of row ``s`` are
+    ``cstart[s]:cstart[s + 1]`` of the part pool, each with its kind, its own table row
+    (-1 for a sphere), its offset [m] and orientation in the compound's frame (a unit
+    quaternion (w, x, y, z); in 2D the angle [rad] in column 0) and its bounding radius
+    [m] (a sphere's radius). Other rows have no parts.
 
 Kernels take the tuple :meth:`ShapeTable.arrays` as ``geo``; with a constant ``kind``
 the dispatch in :func:`sdf_local` folds away at compile time.
@@ -39,7 +46,7 @@ import numpy as np
 
 from .._jit import kernel
 
-SPHERE, PLANE, BOX, POLYGON, POLYHEDRON, CUSTOM = 0, 1, 2, 3, 4, 5
+SPHERE, PLANE, BOX, POLYGON, POLYHEDRON, CUSTOM, COMPOUND = 0, 1, 2, 3, 4, 5, 6
 #: central-difference step of the SDF gradient, relative to the shape's bounding radius
 GRAD_STEP = 1e-7
 
@@ -70,6 +77,12 @@ class ShapeTable:
         self.tstart = np.zeros(1, np.int64)
         self.tris = np.zeros((0, 3), np.int64)
         self.xform = np.zeros((0, 12))
+        self.cstart = np.zeros(1, np.int64)
+        self.part_kind = np.zeros(0, np.int64)
+        self.part_row = np.zeros(0, np.int64)
+        self.part_off = np.zeros((0, 3))
+        self.part_rot = np.zeros((0, 4))
+        self.part_rad = np.zeros(0)
         self.shapes = []  # the Python shape objects, row by row
 
     @property
@@ -77,7 +90,26 @@ class ShapeTable:
         return self.kind.shape[0]
 
     def add(self, rows, shape=None):
-        """Append one shape from its ``rows()`` dict; returns its row index."""
+        """Append one shape from its ``rows()`` dict; returns its row index.
+
+        A compound's parts get rows of their own first (spheres excepted), then the
+        compound its row and its entries in the part pool."""
+        parts = []
+        if int(rows["kind"]) == COMPOUND:
+            for part, off, q in shape.part_poses():
+                sphere = not hasattr(part, "rows")
+                row = -1 if sphere else self.add(part.rows(), part)
+                q = np.atleast_1d(np.asarray(q, np.float64))
+                parts.append((SPHERE if sphere else int(part.code), row, off,
+                              np.r_[q, np.zeros(4 - q.size)], part.bounding_radius))
+        self.cstart = np.append(self.cstart, self.cstart[-1] + len(parts))
+        if parts:
+            kinds, prow, off, q, rad = zip(*parts)
+            self.part_kind = np.append(self.part_kind, np.array(kinds, np.int64))
+            self.part_row = np.append(self.part_row, np.array(prow, np.int64))
+            self.part_off = np.ascontiguousarray(np.vstack([self.part_off, off]))
+            self.part_rot = np.ascontiguousarray(np.vstack([self.part_rot, q]))
+            self.part_rad = np.append(self.part_rad, np.array(rad, np.float64))
         verts = np.asarray(rows["verts"], np.float64).reshape(-1, 3)
         faces = np.asarray(rows["faces"], np.float64).reshape(-1, 4)
         tris = np.asarray(rows["tris"], np.int64).reshape(-1, 3)
@@ -111,10 +143,14 @@ class ShapeTable:
         return (self.param, self.scale, self.vstart, self.verts, self.fstart, self.faces,
                 self.tstart, self.tris, self.brad, self.xform)
 
+    #: every array of the table
+    ARRAYS = ("kind", "param", "scale", "brad", "vstart", "verts", "fstart", "faces",
+              "tstart", "tris", "xform", "cstart", "part_kind", "part_row", "part_off",
+              "part_rot", "part_rad")
+
     def copy(self):
         t = ShapeTable()
-        for name in ("kind", "param", "scale", "brad", "vstart", "verts", "fstart", "faces",
-                     "tstart", "tris", "xform"):
+        for name in self.ARRAYS:
             setattr(t, name, getattr(self, name).copy())
         t.shapes = list(self.shapes)
         return t

@@ -10,7 +10,9 @@ environment, with that environment's commands first on the ``PATH``:
   ``if``) runs whole;
 - ``toml file=NAME`` (any language): written to ``NAME`` before anything runs;
 - ``text output`` blocks: what the command before prints; every line but a ``wall time``
-  must be a line of that command's output;
+  must be a line of that command's output; ``vary=WORD,...`` lists lines (by their first
+  word) whose numbers may differ from machine to machine: their label, the text before
+  the first number, must be printed;
 - other ``text`` and unlabelled blocks are output and pseudo-code, and ``... norun``
   blocks are fragments: shown, not run. An unlabelled block that starts with a command
   is an error (label it).
@@ -58,6 +60,8 @@ class Block:
         self.norun = "norun" in words
         self.output = lang == "text" and "output" in words
         self.file = next((w[5:] for w in words if w.startswith("file=")), None)
+        vary = next((w[5:] for w in words if w.startswith("vary=")), "")
+        self.vary = set(filter(None, vary.split(",")))
 
     @property
     def where(self):
@@ -146,6 +150,11 @@ def scratch(cwd, page):
     srun.chmod(0o755)
 
 
+def _label(line):
+    """The text of an output line before its first number."""
+    return re.split(r"\s[-+]?\d", line.strip() + " 0", maxsplit=1)[0]
+
+
 def walk(page, tiers, cwd, timeout=1800):
     """Run ``page`` as written in ``cwd``: its python blocks, its file blocks and its
     commands of the given tiers, in page order. Returns ``(ran, failure)``: the
@@ -161,8 +170,11 @@ def walk(page, tiers, cwd, timeout=1800):
     for b in blocks(page):
         if b.output:
             printed = set(ln.rstrip() for ln in last.splitlines()) if last else set()
+            labels = {_label(ln) for ln in printed}
             wrong = [ln for ln in b.code.splitlines() if "wall time" not in ln
-                     and ln.rstrip() not in printed]
+                     and ln.rstrip() not in printed
+                     and not (ln.split()[:1] and ln.split()[0] in b.vary
+                              and _label(ln) in labels)]
             if wrong:
                 return ran, (f"{b.where}: the command before does not print these lines "
                              f"of the page: {wrong}\n--- it printed\n{last}")

@@ -48,6 +48,18 @@ def test_a_page_that_shows_the_wrong_output_fails(tmp_path):
     assert len(ran) == 1 and "page.md:5" in failure and "['q/p = 0.44']" in failure
 
 
+def test_vary_lets_numbers_differ_but_not_labels(tmp_path):
+    cmd = "```bash\npython -c \"print('peak 25.67 deg'); print('critical 19.38 deg')\"\n```\n\n"
+    for k, (shown, ok) in enumerate((("peak 25.67 deg\ncritical 21.56 deg", True),
+                      ("peak 25.60 deg\ncritical 21.56 deg", False),   # not in vary
+                      ("peak 25.67 deg\ncritical angle 21.56 deg", False))):  # label
+        page = tmp_path / f"page{k}.md"
+        page.write_text(cmd + f"```text output vary=critical\n{shown}\n```\n")
+        (tmp_path / f"run{k}").mkdir()
+        ran, failure = walk(page, {"quick"}, tmp_path / f"run{k}")
+        assert (failure is None) == ok, (shown, failure)
+
+
 RUNNABLE = [p for p in pages() if p.name != "tutorial.md" and any(
     (b.lang == "python" and not b.norun) or any(tier(c) == "quick" for c in b.commands())
     for b in blocks(p))]

@@ -24,7 +24,7 @@ demo: $(STAMP)
 # differ (level-set shapes and their contact solvers / everything else), so that numba
 # compiles the two halves at once; then the MPI tests.
 SHAPE_TESTS := $(sort $(wildcard tests/dem/test_detection_*.py tests/dem/test_shape*.py \
-	tests/dem/test_io_shapes.py tests/dem/test_interpreted.py))
+	tests/dem/test_io_shapes.py tests/dem/test_interpreted.py tests/dem/test_compound.py))
 # the documentation pages run as written (about 4 minutes), shared between the halves
 DOC_TESTS := tests/test_doc_pages.py
 DOC_REST := batch or multiscale

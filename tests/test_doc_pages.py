@@ -49,7 +49,8 @@ def test_a_page_that_shows_the_wrong_output_fails(tmp_path):
 
 
 def test_vary_lets_numbers_differ_but_not_labels(tmp_path):
-    cmd = "```bash\npython -c \"print('peak 25.67 deg'); print('critical 19.38 deg')\"\n```\n\n"
+    cmd = ("```bash\npython -c \"print('peak 25.67 deg'); "
+           "print('critical 19.38 deg')\"\n```\n\n")
     for k, (shown, ok) in enumerate((("peak 25.67 deg\ncritical 21.56 deg", True),
                       ("peak 25.60 deg\ncritical 21.56 deg", False),   # not in vary
                       ("peak 25.67 deg\ncritical angle 21.56 deg", False))):  # label

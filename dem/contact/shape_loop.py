@@ -234,8 +234,8 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                         eoff, eq, eprad, ekind, eshape, epos, erot, erad, enormal,
                         pairs, parts, img, order, bstart, bmethod, touch, hist, warm, iters,
                         pgeom, fpair, tpair, inc_start, inc_list, params_pp,
-                        wpairs, wparts, worder, wbstart, wbmethod, whist, wwarm, witers, wgeom,
-                        wforce, wtorque, winc_start, winc_list, params_pw,
+                        wpairs, wparts, worder, wbstart, wbmethod, whist, wwarm, witers,
+                        wgeom, wforce, wtorque, winc_start, winc_list, params_pw,
                         status_out, work_out):
         """Advance ``n_steps``; returns the number of completed steps (see
         :func:`dem.contact.loops.stepper` for ``prime``/``resume``/status and for the
@@ -324,8 +324,8 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                             DIM, meth, pa, pb, sx, sy, sz, epos, erot, erad, eshape, geo)
                     pair_force(DIM, PP, DEFORM, lgrad, k, i, j, a, b, swap, sx, sy, sz,
                                ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel, erad[pa],
-                               erad[pb], inv_mass, mat_id, params_pp, hist, touch, fpair, tpair,
-                               pgeom, hdt, overlap_limit, status_out)
+                               erad[pb], inv_mass, mat_id, params_pp, hist, touch, fpair,
+                               tpair, pgeom, hdt, overlap_limit, status_out)
             # ---- 4. wall buckets: body i against wall w (home body: i)
             work = 0.0
             for bi in range(wbmethod.shape[0]):
@@ -346,9 +346,8 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                             status_out[1] = i
                             status_out[2] = w
                     else:
-                        ov, nx, ny, nz, cx, cy, cz = wall_exact(DIM, meth, pi, pw, epos,
-                                                                 erot, erad, enormal, eshape,
-                                                                 geo)
+                        ov, nx, ny, nz, cx, cy, cz = wall_exact(
+                            DIM, meth, pi, pw, epos, erot, erad, enormal, eshape, geo)
                     work += wall_force(DIM, PW, k, i, w, ov, nx, ny, nz, cx, cy, cz, pos,
                                        vel, ang_vel, erad[pi], inv_mass, mat_id, params_pw,
                                        whist, wforce, wtorque, wgeom, hdt, overlap_limit,

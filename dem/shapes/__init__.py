@@ -30,5 +30,5 @@ class Shape(IntEnum):
     COMPOUND = 6    # a union of convex parts (each part its own contact)
 
 
-__all__ = ["Box", "Compound", "ConvexPolygon", "ConvexPolyhedron", "CustomShape", "Plane", "Shape",
-           "Sphere", "sdf_plane", "sdf_sphere"]
+__all__ = ["Box", "Compound", "ConvexPolygon", "ConvexPolyhedron", "CustomShape", "Plane",
+           "Shape", "Sphere", "sdf_plane", "sdf_sphere"]

@@ -41,12 +41,14 @@ from .sphere import Sphere
 COMPOUND = 6
 #: grid cells along the longest side of the union, for overlapping spheres
 GRID = {2: 1024, 3: 160}
-#: an intersection whose inscribed ball is below this fraction of the parts' size is empty
+#: an intersection whose inscribed ball is below this fraction of its parts' size is
+#: empty
 EMPTY = 1e-9
 
 
 def _rotation(rotation, dim):
-    """A part's rotation as a (d, d) matrix from an angle (2D), a matrix or a quaternion."""
+    """A part's rotation as a (d, d) matrix: from an angle (2D), a matrix or a
+    quaternion."""
     if rotation is None:
         return np.eye(dim)
     r = np.asarray(rotation, np.float64)
@@ -62,8 +64,8 @@ def _rotation(rotation, dim):
             raise ValueError("a part's quaternion must be non-zero")
         return quat_to_matrix(r / norm)
     if r.shape != (dim, dim) or not np.isfinite(r).all():
-        raise ValueError(f"a part's rotation must be an angle (2D), a quaternion (3D) or "
-                         f"a ({dim}, {dim}) matrix, got shape {r.shape}")
+        raise ValueError(f"a part's rotation must be an angle (2D), a quaternion (3D) "
+                         f"or a ({dim}, {dim}) matrix, got shape {r.shape}")
     if not (np.allclose(r.T @ r, np.eye(dim), atol=1e-9) and np.linalg.det(r) > 0.0):
         raise ValueError("a part's rotation matrix must be a proper rotation")
     return r
@@ -145,10 +147,12 @@ class Compound:
     @property
     def bounding_radius(self):
         """Largest distance [m] of the union from the frame origin."""
-        return float(max(np.linalg.norm(t) + s.bounding_radius for s, _, t in self.parts))
+        return float(max(np.linalg.norm(t) + s.bounding_radius
+                         for s, _, t in self.parts))
 
     def sdf(self, points):
-        """Signed distance [m] of points (m, d) or one point (d,) [m]: the parts' minimum."""
+        """Signed distance [m] of points (m, d) or one point (d,) [m]: the parts'
+        minimum."""
         x, single = as_points(points, self.dim)
         best = np.full(x.shape[0], np.inf)
         for shape, rot, t in self.parts:
@@ -168,14 +172,15 @@ class Compound:
         return n, faces[:, 3] + n @ t
 
     def _polytope_moments(self, members):
-        """(volume, first moment, inertia about the origin) of the members' intersection,
-        or None if it is empty."""
+        """(volume, first moment, inertia about the origin) of the members'
+        intersection, or None if it is empty."""
         d = self.dim
         a = np.vstack([self._halfspaces(k)[0] for k in members])
         b = np.concatenate([self._halfspaces(k)[1] for k in members])
         size = max(self.parts[k][0].bounding_radius for k in members)
-        lp = linprog(np.r_[np.zeros(d), -1.0], A_ub=np.column_stack([a, np.ones(len(b))]),
-                     b_ub=b, bounds=[(None, None)] * d + [(0.0, None)])
+        lp = linprog(np.r_[np.zeros(d), -1.0],
+                     A_ub=np.column_stack([a, np.ones(len(b))]), b_ub=b,
+                     bounds=[(None, None)] * d + [(0.0, None)])
         if lp.status != 0 or not lp.x[d] > EMPTY * size:
             return None
         if len(members) == 1:
@@ -183,7 +188,8 @@ class Compound:
             verts = _vertices(shape) @ rot.T + t
         else:
             try:
-                verts = HalfspaceIntersection(np.column_stack([a, -b]), lp.x[:d]).intersections
+                verts = HalfspaceIntersection(np.column_stack([a, -b]),
+                                              lp.x[:d]).intersections
             except QhullError:
                 return None
         poly = ConvexPolygon(verts) if d == 2 else ConvexPolyhedron.from_vertices(verts)
@@ -221,7 +227,8 @@ class Compound:
             moment = s.inertia(d, 1.0)
             vol += m
             first = first + m * t
-            inertia = inertia + _to_origin(moment[0] if d == 2 else np.diag(moment), m, t, d)
+            own = moment[0] if d == 2 else np.diag(moment)
+            inertia = inertia + _to_origin(own, m, t, d)
         poly = [k for k in range(len(self.parts)) if k not in spheres]
         # inclusion-exclusion, depth first: a subset with an empty intersection ends its
         # branch (every superset is empty too)
@@ -278,17 +285,18 @@ class Compound:
         rho = check_density(density)
         vol, first, inertia = self._moments()
         c = first / vol
-        about_c = inertia - _to_origin(0.0 if self.dim == 2 else np.zeros((3, 3)), vol, c,
-                                       self.dim)
+        zero = 0.0 if self.dim == 2 else np.zeros((3, 3))
+        about_c = inertia - _to_origin(zero, vol, c, self.dim)
         return rho * vol, c, rho * about_c
 
     def inertia_tensor(self, density):
-        """Polar moment (2D) or inertia tensor (3, 3) (3D) [kg m^2] about the centroid."""
+        """Polar moment (2D) or inertia tensor (3, 3) (3D) [kg m^2] about the
+        centroid."""
         return self.mass_properties(density)[2]
 
     def principal_moments(self, density):
-        """Principal moments [kg m^2]: (1,) in 2D; (3,) in 3D, in x, y, z order when this
-        frame is principal."""
+        """Principal moments [kg m^2]: (1,) in 2D; (3,) in 3D, in x, y, z order when
+        this frame is principal."""
         inertia = self.inertia_tensor(density)
         if self.dim == 2:
             return np.array([float(inertia)])

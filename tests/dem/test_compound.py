@@ -96,7 +96,8 @@ def test_overlapping_spheres_on_the_grid(dim, sep):
     vol, moments = _two_spheres_reference(r, sep, dim)
     m, c, _ = union.mass_properties(1.0)
     assert c == pytest.approx(0.5 * shift, abs=1e-5 * r)
-    tol_v, tol_i = (1e-4, 5e-4) if dim == 3 else (1e-6, 1e-5)  # the module's stated bounds
+    # the module's stated bounds
+    tol_v, tol_i = (1e-4, 5e-4) if dim == 3 else (1e-6, 1e-5)
     assert abs(m - vol) / vol < tol_v
     got = union.principal(1.0)[0].principal_moments(1.0)
     assert np.abs(np.sort(got) - np.sort(moments)).max() / moments.max() < tol_i
@@ -109,7 +110,8 @@ def test_spheres_that_overlap_nothing_are_exact():
     m, c, inertia = pair.mass_properties(1.0)
     vs, vb = 4.0 / 3.0 * math.pi * r**3, 0.008
     assert m == pytest.approx(2 * vs + vb, rel=1e-14)
-    assert c == pytest.approx(np.array([vs * d + vb * 0.5, vb * 2.0, 0.0]) / m, rel=1e-12)
+    first = np.array([vs * d + vb * 0.5, vb * 2.0, 0.0])
+    assert c == pytest.approx(first / m, rel=1e-12)
     # parallel axes about the centroid: spheres 2/5 m r^2, the box m (b^2 + c^2) / 3
     offsets = np.array([[0.0, 0.0, 0.0], [d, 0.0, 0.0], [0.5, 2.0, 0.0]]) - c
     own = [0.4 * vs * r * r * np.eye(3)] * 2 + [vb * 0.02 / 3.0 * np.eye(3)]
@@ -202,7 +204,8 @@ def test_a_compound_of_one_part_is_that_part(dim):
     law = dem.LinearSpring(kn=1e5, kt=2e4, mu=0.4, restitution=0.5)
     runs = []
     for b in (plain, wrapped):
-        sim = dem.Simulation(b, law, dt=2e-4, gravity=-9.81 * np.eye(dim)[-1], threads=1)
+        sim = dem.Simulation(b, law, dt=2e-4, gravity=-9.81 * np.eye(dim)[-1],
+                             threads=1)
         touched = 0
         for _ in range(50):
             sim.run(30)
@@ -277,7 +280,8 @@ def test_elastic_collision_of_two_compounds_conserves():
     assert len(sim.contacts()["i"]) == 0, "still in contact at the end"
     scale = np.sum(b.mass * np.linalg.norm(b.vel, axis=1))
     assert np.linalg.norm((b.mass[:, None] * b.vel).sum(axis=0) - p0) < 1e-12 * scale
-    assert np.linalg.norm(angular_momentum(b) - l0) < 1e-9 * (np.linalg.norm(l0) + scale)
+    drift = np.linalg.norm(angular_momentum(b) - l0)
+    assert drift < 1e-9 * (np.linalg.norm(l0) + scale)
     assert abs(sum(kinetic_energy(b)) - e0) / e0 < 1e-3
 
 
@@ -310,13 +314,15 @@ def test_surfaces_and_bodies_file(tmp_path):
     b.add_shapes(Box([0.1, 0.1, 0.1]), [[2.0, 0.0, 0.0]], RHO)
     surf = shape_surfaces(b)
     # two boxes of the compound and the plain box: 3 x 12 triangles
-    assert surf["cells"].shape == (36, 3) and surf["body"].tolist() == [0] * 24 + [1] * 12
+    assert surf["cells"].shape == (36, 3)
+    assert surf["body"].tolist() == [0] * 24 + [1] * 12
     # the compound's drawn corners are the corners of its boxes, placed in the world
     pts = surf["points"][:16]
     local = (pts - b.pos[0]) @ quat_to_matrix(b.rot[0])
     shape = b.table.shapes[b.shape[0]]
     for k, (part, rot, off) in enumerate(shape.parts[:2]):
-        assert np.allclose(local[8 * k:8 * k + 8], part.corners() @ rot.T + off, atol=1e-12)
+        corners = part.corners() @ rot.T + off
+        assert np.allclose(local[8 * k:8 * k + 8], corners, atol=1e-12)
     path = tmp_path / "bodies.h5"
     write_bodies(b, path)
     back = read_bodies(path)
@@ -355,7 +361,7 @@ def test_checkpoint_restart_of_compounds_is_bit_for_bit(tmp_path):
         shared += len(c["i"]) - len(set(zip(c["i"], c["j"])))
     assert shared > 5
     for name in ("pos", "vel", "rot", "ang_vel"):
-        assert np.array_equal(getattr(sim.bodies, name), getattr(again.bodies, name)), name
+        assert np.array_equal(getattr(sim.bodies, name), getattr(again.bodies, name))
 
 
 def test_a_compound_cannot_be_grown():
@@ -363,6 +369,7 @@ def test_a_compound_cannot_be_grown():
     b.add_shapes(_dumbbell(2), [[0.0, 0.5]], RHO)
     for row in (b.shape[0], b.table.part_row[b.table.part_row >= 0][0]):
         sim = dem.Simulation(b.copy(), dem.LinearSpring(kn=1e5), dt=1e-4,
-                             state_objects=[dem.ShapeScale([row], lambda s, t: 0.1 * s)])
+                             state_objects=[dem.ShapeScale([row],
+                                                           lambda s, t: 0.1 * s)])
         with pytest.raises(ValueError, match="cannot grow a compound"):
             sim.run(2)

@@ -175,8 +175,8 @@ class Compound:
         """(volume, first moment, inertia about the origin) of the members'
         intersection, or None if it is empty."""
         d = self.dim
-        a = np.vstack([self._halfspaces(k)[0] for k in members])
-        b = np.concatenate([self._halfspaces(k)[1] for k in members])
+        normals, offsets = zip(*(self._halfspaces(k) for k in members))
+        a, b = np.vstack(normals), np.concatenate(offsets)
         size = max(self.parts[k][0].bounding_radius for k in members)
         lp = linprog(np.r_[np.zeros(d), -1.0],
                      A_ub=np.column_stack([a, np.ones(len(b))]), b_ub=b,

@@ -63,7 +63,7 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     say(f"mesh: {macro.n_elems} {macro.element} elements, {macro.n_dofs} dofs, "
         f"{macro.n_gp} Gauss points" + (f", {comm.Get_size()} MPI ranks" if comm else ""))
     driven = [(c["boundary"], "xyz".index(c["component"])) for c in problem["dirichlet"]
-              if c["value"] != 0.0]
+              if c["value"] != 0.0 and c["boundary"] is not None]
     ck = None
     out, refused = None, None
     try:  # every rank opens the checkpoint: each reads its own points from it
@@ -150,6 +150,9 @@ def _solve(problem, macro, farm, supports, f_const, f_ramp, out, progress, say, 
                 raise SolverError(f"{err}; that state (load factor {solver.t:.6g}) is "
                                   f"the last frame of {out.path}") from err
             out.write(k, solver, farm.measures(), its, force_frame=(k == n))
+            log.info("load step %d of %d done: load factor %.6g, %d Newton iterations, "
+                     "%d cuts so far, %.1f s", k, n, solver.t, its, solver.cuts,
+                     time.perf_counter() - t1)
             if (every_ck and k % every_ck == 0) or k == last < n:
                 save_checkpoint(out.dir / "checkpoint.h5", problem, k, solver, out.curve,
                                 farm.export())

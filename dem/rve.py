@@ -284,6 +284,14 @@ class RVE:
     #: contact slips, and a tighter servo would keep stirring it
     SHEAR_TOL = 1e-2
 
+    #: under strain control, a packing whose coordination number stays below this
+    #: for :attr:`APART_CHECKS` checks after its increment has come apart: no
+    #: jammed packing has fewer contacts than half its particles, and a gas in a
+    #: fixed cell never relaxes, so the relaxation stops at once with a
+    #: :class:`RelaxationError` instead of running to its step cap
+    APART_COORDINATION = 1.0
+    APART_CHECKS = 10
+
     #: settings stored with a saved RVE
     _SETTINGS = ("mass_scale", "max_step_strain", "tol", "stress_tol", "max_relax_steps",
                  "check_every")
@@ -485,6 +493,7 @@ class RVE:
         tau = 4.0 * self.check_every * dt  # servo time constant
         start = sim.step
         done_load = 0
+        apart = 0
         lgrad = np.zeros((d, d))
         r = self.response(tangent=bool(mask.any()))
         while True:
@@ -512,6 +521,19 @@ class RVE:
                 lgrad += l_load
             elif servo_ok and (r["unbalanced"] < self.tol or not relax):
                 break
+            if done_load >= n_load and not mask.any() \
+                    and r["coordination"] < self.APART_COORDINATION:
+                apart += 1
+                if apart >= self.APART_CHECKS:
+                    cell.lgrad[:] = 0.0
+                    raise RelaxationError(
+                        f"the packing came apart: {r['n_contacts']} contacts among "
+                        f"{sim.bodies.n} particles (coordination "
+                        f"{r['coordination']:.2f}) {apart} checks after the strain "
+                        f"increment, mean stress {-np.trace(r['stress']) / d:.4g} Pa; "
+                        f"it cannot relax (lower the strain increment)")
+            else:
+                apart = 0
             if sim.step - start - n_load >= self.max_relax_steps:
                 cell.lgrad[:] = 0.0
                 raise RelaxationError(

@@ -198,6 +198,22 @@ def test_relaxation_that_cannot_finish_says_so(packing):
         packing.restore(snap)
 
 
+def test_a_packing_pulled_apart_stops_at_once(packing):
+    """2 % extension in both directions opens every contact of the packing: a gas in
+    a fixed cell never relaxes, so the call ends within APART_CHECKS checks of its
+    loading steps with a RelaxationError that says so, not at the 200,000-step cap."""
+    snap = packing.snapshot()
+    try:
+        with pytest.raises(rve.RelaxationError, match="came apart") as err:
+            packing.apply_strain(np.diag([2e-2, 2e-2]))
+        assert "coordination 0.00" in str(err.value)
+        n_load = 2000  # 2e-2 at 1e-5 per step
+        relax = packing.sim.step - int(snap["clock"][0]) - n_load
+        assert relax <= rve.RVE.APART_CHECKS * packing.check_every
+    finally:
+        packing.restore(snap)
+
+
 def test_bad_inputs_are_refused(packing):
     with pytest.raises(ValueError, match="finite"):
         packing.apply_strain(np.zeros((3, 3)))

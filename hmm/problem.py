@@ -20,6 +20,10 @@ Layout (SI units; ``d`` is ``[mesh] dim``)::
     component = "y"                # x, y or z
     value = 0.0                    # [m] at the end of the schedule
 
+    [[dirichlet]]                  # or at one vertex of the mesh: a point support
+    point = [0.025, 0.0]           # [m]
+    component = "x"
+
     [[pressure]]                   # normal pressure (compression positive)
     boundary = "left"
     value = 1e5                    # [Pa]
@@ -99,7 +103,10 @@ SCHEMA = {
     }),
     "dirichlet": Section(doc="Prescribed displacements, ramped with the load factor.",
                          array=True, keys={
-        "boundary": Key("str", default=REQUIRED, doc="Named boundary of the mesh."),
+        "boundary": Key("str", doc="Named boundary of the mesh (this or `point`)."),
+        "point": Key("vector", "m", doc="A vertex of the mesh (this or `boundary`): a "
+                                         "point support, e.g. the middle of a smooth "
+                                         "base held against rigid sliding."),
         "component": Key("str", default=REQUIRED, choices=COMPONENTS,
                          doc="Displacement component."),
         "value": Key("float", "m", default=0.0, doc="Value at the end of the schedule."),
@@ -266,6 +273,8 @@ def validate_problem(data, source="<problem>", base_dir="."):
     if (m["element"] in ELEMENTS_2D) != (m["dim"] == 2):
         ctx.fail(f"element \"{m['element']}\" does not fit dim = {m['dim']}", "[mesh]")
     for i, c in enumerate(out["dirichlet"]):
+        if (c["boundary"] is None) == (c["point"] is None):
+            ctx.fail("needs a boundary or a point (one of them)", f"[[dirichlet]] #{i + 1}")
         if COMPONENTS.index(c["component"]) >= m["dim"]:
             ctx.fail(f"component \"{c['component']}\" does not exist in {m['dim']}D",
                      f"[[dirichlet]] #{i + 1}")
@@ -307,11 +316,24 @@ def build_macro(problem):
     known = set(mesh.boundaries or {})
     for kind in ("dirichlet", "pressure", "traction"):
         for i, c in enumerate(problem[kind]):
+            if c.get("point") is not None:
+                if vertex_at(mesh, c["point"]) is None:
+                    raise SceneError(f"{src}: [[{kind}]] #{i + 1} point = "
+                                     f"{list(c['point'])} is not a vertex of the mesh")
+                continue
             if c["boundary"] not in known:
                 raise SceneError(f"{src}: [[{kind}]] #{i + 1} boundary "
                                  f"\"{c['boundary']}\" is not a boundary of the mesh "
                                  f"(known: {', '.join(sorted(known)) or 'none'})")
     return Macro(mesh, m["element"])
+
+
+def vertex_at(mesh, point):
+    """Index of the mesh vertex at ``point`` (within 1e-9 of the mesh size), or
+    None."""
+    dist = np.linalg.norm(mesh.p.T - np.asarray(point, dtype=np.float64), axis=1)
+    v = int(np.argmin(dist))
+    return v if dist[v] <= 1e-9 * float(np.ptp(mesh.p, axis=1).max()) else None
 
 
 def _cut_boundaries(problem, mesh):
@@ -344,14 +366,19 @@ def build_loads(problem, macro):
 
     dofs, values = [], []
     for c in problem["dirichlet"]:
-        k = macro.dofs(c["boundary"], COMPONENTS.index(c["component"]))
+        comp = COMPONENTS.index(c["component"])
+        if c["point"] is None:
+            k = macro.dofs(c["boundary"], comp)
+        else:
+            k = macro.basis.nodal_dofs[comp, [vertex_at(macro.mesh, c["point"])]]
         dofs.append(k)
         values.append(np.full(k.size, c["value"]))
     dofs = np.concatenate(dofs)
     values = np.concatenate(values)
     dofs, first = np.unique(dofs, return_index=True)  # a corner in two conditions
     supports = Supports(dofs, values[first],
-                        tuple(dict.fromkeys(c["boundary"] for c in problem["dirichlet"])))
+                        tuple(dict.fromkeys(c["boundary"] for c in problem["dirichlet"]
+                                            if c["boundary"] is not None)))
     f_const = np.zeros(macro.n_dofs)
     f_ramp = np.zeros(macro.n_dofs)
     for p in problem["pressure"]:

@@ -94,3 +94,37 @@ def test_weak_spot_points_start_from_their_own_packing():
     assert voids[weak][0] > voids[~weak][0]  # consolidated with friction: looser
     with pytest.raises(ValueError, match="coordinates"):
         model_factory(prob, 2)
+
+
+def test_point_support_holds_one_vertex_and_lets_the_base_widen(tmp_path):
+    """A smooth base held in x at its middle vertex only: under a symmetric vertical
+    load the elastic body widens symmetrically about that vertex (Poisson), the
+    point carries no horizontal force, and u_x is exactly zero there alone."""
+    prob = copy.deepcopy(ELASTIC)
+    prob["dirichlet"][1] = {"point": [0.5, 0.0], "component": "x"}
+    prob = validate_problem(prob)
+    s = run_problem(prob, tmp_path / "out", progress=False)
+    macro = build_macro(prob)
+    ux = macro.nodal_displacement(s["u"])[:, 0]
+    x, y = macro.mesh.p
+    base = np.isclose(y, 0.0)
+    mid = base & np.isclose(x, 0.5)
+    assert ux[mid] == 0.0
+    assert np.all(ux[base & (x > 0.5)] > 0.0) and np.all(ux[base & (x < 0.5)] < 0.0)
+    np.testing.assert_allclose(ux[base & np.isclose(x, 0.0)],
+                               -ux[base & np.isclose(x, 1.0)], rtol=1e-9)
+    assert "left" not in s["reactions"]  # a point is not a boundary with a reaction
+
+
+@pytest.mark.parametrize("entry, message", [
+    ({"point": [0.4, 0.0], "component": "x"}, r"point = \[0.4, 0.0\] is not a vertex"),
+    ({"component": "x"}, "needs a boundary or a point"),
+    ({"boundary": "left", "point": [0.5, 0.0], "component": "x"},
+     "needs a boundary or a point"),
+])
+def test_bad_point_supports_name_the_key(entry, message):
+    prob = copy.deepcopy(ELASTIC)
+    prob["dirichlet"][1] = entry
+    with pytest.raises(SceneError, match=message) as err:
+        build_macro(validate_problem(prob))
+    assert "[[dirichlet]] #2" in str(err.value) and "\n" not in str(err.value)

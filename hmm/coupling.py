@@ -14,8 +14,9 @@ to ``t + dt``, in this order:
    that relaxes to a tolerance answers with noise that a cut step must not have to
    beat); with ``check_residual`` false the correction alone, relative to the
    step's displacement (YADE FEMxDEM's criterion, for micro models whose noise keeps
-   the residual above any useful tolerance); then ``farm.commit()`` and the step is
-   done. A step that has not converged in ``max_iterations``, whose residual (or,
+   the residual above any useful tolerance), or a residual already within
+   ``tol_residual`` (a cut step whose correction is noise over a tiny displacement);
+   then ``farm.commit()`` and the step is done. A step that has not converged in ``max_iterations``, whose residual (or,
    without the residual check, correction) grows three times in a row, or in which
    a micro model's physics fails (an RVE that cannot relax), is **cut**:
    ``farm.rollback()`` and the step is retried at half its size, down to
@@ -192,8 +193,12 @@ class Solver:
             un = max(float(np.linalg.norm(ref_u)), self._u_floor)
             if on_iteration is not None:
                 on_iteration(it, rn / ref, dn / un)
-            small_r = rn <= st.tol_residual * ref or not st.check_residual
-            if small_r and dn <= st.tol_displacement * un:
+            small_r = rn <= st.tol_residual * ref
+            small_d = dn <= st.tol_displacement * un
+            # without the residual check, a residual already within its tolerance
+            # ends the step too: the correction of a small cut step is the micro
+            # models' noise over a tiny displacement, which no iteration removes
+            if (small_r and small_d) if st.check_residual else (small_d or small_r):
                 self.u += du
                 self.t += h
                 self.sigma, self.tangent = sig, c

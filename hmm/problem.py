@@ -217,8 +217,8 @@ SCHEMA = {
                         doc="Smallest step, as a fraction of the nominal one."),
         "check_residual": Key("bool", default=True,
                               doc="Converge on residual and correction; false: on the "
-                                  "correction over the step's displacement alone "
-                                  "(YADE FEMxDEM's criterion)."),
+                                  "correction over the step's displacement (YADE "
+                                  "FEMxDEM's criterion) or the residual, either."),
     }),
     "output": Section(doc="Where results go.", keys={
         "dir": Key("str", doc="Output directory; default output/<file stem>."),

@@ -54,6 +54,17 @@ def _p_q(sig):
         return p, np.where(p > 0.0, q / p, np.nan)
 
 
+def _second_panel(dem, void):
+    """What the right half of deviatoric_strain.png shows: (values, title, cmap, limits).
+
+    Where every Gauss point ran its RVE the share running DEM is 1 everywhere and
+    says nothing; the void ratio (the dilation inside a band) says more.
+    """
+    if np.all(dem >= 1.0) and np.all(np.isfinite(void)):
+        return void, "void ratio", "magma", (None, None)
+    return dem, "share of Gauss points running DEM", "Greys", (0.0, 1.0)
+
+
 class Output:
     """Writes the steps of a run into ``directory``.
 
@@ -316,6 +327,7 @@ class Output:
             disp = f[name]["displacement"][:, :2]
             dev = f[name]["deviatoric_strain"][()]
             dem = f[name]["dem_fraction"][()]
+            void = f[name]["void_ratio"][()]
         mesh = self.macro.mesh
         scale = 1.0
         span = np.ptp(mesh.p, axis=1).max()
@@ -323,10 +335,11 @@ class Output:
             scale = min(10.0, 0.1 * span / np.abs(disp).max())
         xy = mesh.p.T + scale * disp
         polys = xy[mesh.t.T]
+        second = _second_panel(dem, void)
         fig, axs = plt.subplots(1, 2, figsize=(8, 5))
         for ax, val, title, cmap, lim in (
                 (axs[0], dev, "deviatoric strain", "viridis", (None, None)),
-                (axs[1], dem, "share of Gauss points running DEM", "Greys", (0.0, 1.0))):
+                (axs[1], *second)):
             pc = PolyCollection(polys, array=val, cmap=cmap, edgecolors="k",
                                 linewidths=0.3)
             pc.set_clim(*lim)

@@ -198,3 +198,16 @@ def test_restart_continues_a_stopped_run_bit_for_bit(tmp_path):
         "young = 1e6", "young = 2e6"))
     r = _hmm("run", "p.toml", "-o", "cut", "--restart", cwd=tmp_path)
     assert r.returncode == 2 and "belongs to another problem" in r.stderr
+
+
+def test_the_field_plot_shows_void_ratio_only_where_every_point_ran_its_rve():
+    from hmm.io import _second_panel
+
+    void = np.array([0.19, 0.25])
+    values, title, _, _ = _second_panel(np.array([1.0, 1.0]), void)
+    assert title == "void ratio" and values is void
+    # an elastic point has no packing: its share of DEM says where the RVEs ran
+    for dem, v in ((np.array([1.0, 0.0]), void), (np.ones(2), np.array([0.2, np.nan]))):
+        values, title, _, limits = _second_panel(dem, v)
+        assert title.startswith("share of Gauss points") and values is dem
+        assert limits == (0.0, 1.0)

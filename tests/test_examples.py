@@ -208,21 +208,24 @@ def _problem(name):
 
 
 def test_shear_band_problem_puts_its_weak_spot_on_the_left_side():
-    """The full file builds: 128 Gauss points, the anchor is one facet of the base,
-    the weak spot holds Gauss points of the left column only, with half the friction.
-    (Its full run is in docs/multiscale.md; the DEM run at small size is the biaxial
-    test of tests/hmm/test_run.py.)"""
-    from hmm.problem import build_loads, build_macro, spot_of
+    """The full file builds: 512 Gauss points of quadratic elements, one point
+    support at the middle of the base, the weak spot holds Gauss points near the
+    left side only, with half the friction. (Its full run is in docs/multiscale.md;
+    the DEM run at small size is the biaxial test of tests/hmm/test_run.py.)"""
+    from hmm.problem import build_loads, build_macro, spot_of, vertex_at
 
     prob = _problem("shear_band")
     macro = build_macro(prob)
-    assert macro.n_gp == 128
-    assert len(macro.mesh.boundaries["anchor"]) == 1
+    assert macro.n_gp == 512
+    pins = [d for d in prob["dirichlet"] if d["point"] is not None]
+    assert len(pins) == 1 and pins[0]["component"] == "x"
+    k = vertex_at(macro.mesh, pins[0]["point"])
+    assert np.allclose(macro.mesh.p[:, k], [0.025, 0.0])
     _, f_const, _ = build_loads(prob, macro)
     assert abs(f_const.sum()) < 1e-9 * np.abs(f_const).max()  # the two sides balance
     spot = spot_of(prob, macro.gauss_points())
     pts = macro.gauss_points()[spot == 0]
-    assert 0 < len(pts) <= 8 and np.all(pts[:, 0] < 0.0125)
+    assert 0 < len(pts) <= 32 and np.all(pts[:, 0] < 0.0125)  # 24 of 512
     assert prob["imperfection"][0]["mu"] == 0.5 * prob["micro"]["mu"]
 
 

@@ -14,9 +14,11 @@ to ``t + dt``, in this order:
    that relaxes to a tolerance answers with noise that a cut step must not have to
    beat); with ``check_residual`` false the correction alone, relative to the
    step's displacement (YADE FEMxDEM's criterion, for micro models whose noise keeps
-   the residual above any useful tolerance), or a residual already within
-   ``tol_residual`` (a cut step whose correction is noise over a tiny displacement);
-   then ``farm.commit()`` and the step is done. A step that has not converged in ``max_iterations``, whose residual (or,
+   the residual above any useful tolerance; a cut step's displacement is scaled up
+   to the nominal step's, since the noise in a correction does not shrink with the
+   step), or a residual already within ``tol_residual``; then ``farm.commit()`` and
+   the step is done. A step that has not converged in ``max_iterations``, whose
+   residual (or,
    without the residual check, correction) grows three times in a row, or in which
    a micro model's physics fails (an RVE that cannot relax), is **cut**:
    ``farm.rollback()`` and the step is retried at half its size, down to
@@ -139,7 +141,7 @@ class Solver:
         while self.t < target - 1e-12 * nominal:
             h = min(dt, target - self.t)
             try:
-                its = self._attempt(h, on_iteration)
+                its = self._attempt(h, nominal, on_iteration)
             except _NotConverged as why:
                 self.farm.rollback()
                 self.cuts += 1
@@ -156,7 +158,7 @@ class Solver:
             dt = min(2.0 * dt, nominal)  # grow back after a cut
         return its
 
-    def _attempt(self, h, on_iteration):
+    def _attempt(self, h, nominal, on_iteration):
         macro, farm, st = self.macro, self.farm, self.settings
         sup = self.supports
         f_ext = self.f_ext(self.t + h)
@@ -188,9 +190,15 @@ class Solver:
             dn = float(np.linalg.norm(dd))
             # the correction against the total displacement; without the residual
             # check against the step's own, FEMxDEM's (|du| of a late step is far
-            # below the total, which would let any correction pass)
-            ref_u = self.u + du if st.check_residual else du
-            un = max(float(np.linalg.norm(ref_u)), self._u_floor)
+            # below the total, which would let any correction pass), at the size of
+            # the nominal step: the micro models' noise in the correction does not
+            # shrink with a cut step, so a tolerance that did would make every cut
+            # harder to pass than the step it replaces
+            if st.check_residual:
+                un = float(np.linalg.norm(self.u + du))
+            else:
+                un = float(np.linalg.norm(du)) * (nominal / h)
+            un = max(un, self._u_floor)
             if on_iteration is not None:
                 on_iteration(it, rn / ref, dn / un)
             small_r = rn <= st.tol_residual * ref

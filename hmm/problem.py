@@ -218,7 +218,8 @@ SCHEMA = {
         "check_residual": Key("bool", default=True,
                               doc="Converge on residual and correction; false: on the "
                                   "correction over the step's displacement (YADE "
-                                  "FEMxDEM's criterion) or the residual, either."),
+                                  "FEMxDEM's criterion; a cut step's scaled to the "
+                                  "nominal step) or the residual, either."),
     }),
     "output": Section(doc="Where results go.", keys={
         "dir": Key("str", doc="Output directory; default output/<file stem>."),

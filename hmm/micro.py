@@ -192,6 +192,13 @@ class Hyperbolic(MicroModel):
         return self.response(self.strain)[0]
 
 
+#: why the perturbation tangent and unrelaxed calls do not go together
+PERTURBATION_NEEDS_RELAX = (
+    "the perturbation tangent relaxes its probes, so it needs relaxed RVE calls: from "
+    "the unbalanced state an unrelaxed call leaves, a probe measures that state's "
+    "relaxation, not the stiffness (with relax = false use the contact tangent)")
+
+
 class DEMMicroModel(MicroModel):
     """One periodic DEM RVE (:class:`dem.rve.RVE`) at a Gauss point.
 
@@ -200,7 +207,7 @@ class DEMMicroModel(MicroModel):
     relaxes, and returns the Love-Weber stress and the tangent (``"contact"``: eq 29;
     ``"perturbation"``: relaxed probes, costlier and exact for the relaxed state).
     ``relax=False`` skips the relaxation, YADE FEMxDEM's call (see
-    :meth:`dem.rve.RVE.apply_strain`).
+    :meth:`dem.rve.RVE.apply_strain`); it takes the contact tangent only.
     """
 
     ran_dem = True
@@ -208,6 +215,8 @@ class DEMMicroModel(MicroModel):
     def __init__(self, rve, tangent="contact", probe=1e-5, relax=True):
         if tangent not in ("contact", "perturbation"):
             raise ValueError(f"tangent must be 'contact' or 'perturbation', got {tangent!r}")
+        if tangent == "perturbation" and not relax:
+            raise ValueError(PERTURBATION_NEEDS_RELAX)
         self.rve = rve
         self.relax = bool(relax)
         self.dim = rve.dim

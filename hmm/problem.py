@@ -187,7 +187,8 @@ SCHEMA = {
                      doc="Relax each RVE call to tol; false: stop once the strain "
                          "increment is imposed (YADE FEMxDEM's call)."),
         "tangent": Key("str", default="contact", choices=("contact", "perturbation"),
-                       only=("dem", "adaptive"), doc="Tangent operator of the RVEs."),
+                       only=("dem", "adaptive"), doc="Tangent operator of the RVEs "
+                       "(perturbation: relaxed probes, so relax = true only)."),
         "strain_threshold": Key("float", default=1e-4, range=POSITIVE, only=("adaptive",),
                                 doc="Strain after which a point runs its RVE."),
         "ratio_threshold": Key("float", default=0.3, range=POSITIVE, only=("adaptive",),
@@ -286,8 +287,12 @@ def validate_problem(data, source="<problem>", base_dir="."):
                  f"\"{out['micro']['model']}\"", "[[imperfection]] #1")
     if out["micro"]["model"] in ("dem", "adaptive"):
         from .experiment import check_shape
+        from .micro import PERTURBATION_NEEDS_RELAX
 
         check_shape(ctx, out["micro"], m["dim"], "[micro]")
+        if out["micro"]["tangent"] == "perturbation" and not out["micro"]["relax"]:
+            ctx.fail(f"tangent = \"perturbation\" with relax = false: "
+                     f"{PERTURBATION_NEEDS_RELAX}", "[micro]")
     return out
 
 

@@ -122,3 +122,31 @@ def test_adaptive_with_zero_range_is_the_all_dem_model(packing):
         assert all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
         dem_only.commit()
         adaptive.commit()
+
+
+def test_the_perturbation_tangent_needs_relaxed_calls(packing):
+    """Relaxed probes from a relaxed state give a positive stiffness a little below
+    the contact tangent's (an upper bound); from the unbalanced state an unrelaxed
+    call leaves, the probes measure its relaxation and the 'stiffness' comes out
+    negative. The model refuses that combination, and so does a problem file."""
+    deps = np.diag([-1e-3, 5e-4])
+    diag = {}
+    for relax in (True, False):
+        rve = clone_rve(packing)
+        rve.apply_strain(deps, relax=relax)
+        cp = rve.tangent("perturbation", 1e-5, direction=deps)
+        cc = rve.tangent("contact")
+        diag[relax] = np.array([cp[0, 0, 0, 0], cp[1, 1, 1, 1]]) \
+            / np.array([cc[0, 0, 0, 0], cc[1, 1, 1, 1]])
+    assert np.all((diag[True] > 0.5) & (diag[True] < 1.0))
+    assert np.all(diag[False] < 0.0)
+    with pytest.raises(ValueError, match="relax = false use the contact tangent"):
+        DEMMicroModel(clone_rve(packing), tangent="perturbation", relax=False)
+    from dem.io.scene import SceneError
+    from hmm.problem import validate_problem
+
+    prob = {"mesh": {"size": [1.0, 1.0], "cells": [1, 1]},
+            "dirichlet": [{"boundary": "bottom", "component": "y"}],
+            "micro": {"model": "dem", "tangent": "perturbation", "relax": False}}
+    with pytest.raises(SceneError, match=r'\[micro\] tangent = "perturbation" with relax'):
+        validate_problem(prob)

@@ -232,11 +232,13 @@ def test_shear_band_problem_puts_its_weak_spot_on_the_left_side():
 def test_strip_footing_small_load_settlement(tmp_path):
     """The footing file at small size (4 x 4 cells, 20-disk RVEs, 0.3 mm in two
     steps): at the start the footing and the surcharge carry the RVEs' 100 kPa
-    exactly, then the footing's load grows with its settlement, and the RVEs that
-    ran include every point under the footing."""
+    exactly, then the footing's load grows with its settlement, and the vertical
+    stress concentrates under the footing: above the surcharge there, below the
+    footing's mean pressure, and above what the layer beside it carries."""
     from hmm.run import run_problem
 
     prob = _problem("strip_footing")
+    assert prob["mesh"]["element"] == "quad8" and prob["micro"]["model"] == "dem"
     prob["mesh"]["cells"] = [4, 4]
     prob["micro"]["count"] = 20
     prob["load"]["steps"] = 2
@@ -248,7 +250,7 @@ def test_strip_footing_small_load_settlement(tmp_path):
     with h5py.File(tmp_path / "out" / "fields.h5") as f:
         force = f["curve/force/footing"][:, 1]
         settle = -f["curve/displacement/footing"][:, 1]
-        ran = f["steps/00002/dem_fraction"][()]
+        syy = f["steps/00002/stress_yy"][()]
     from hmm.problem import build_macro
 
     mesh = build_macro(prob).mesh
@@ -257,4 +259,7 @@ def test_strip_footing_small_load_settlement(tmp_path):
     assert force[0] == pytest.approx(-1e5 * width, rel=1e-2)
     assert np.all(np.diff(settle) > 0) and np.all(np.diff(-force) > 0)
     under = mesh.f2t[0, mesh.boundaries["footing"]]
-    assert np.all(ran[under] == 1.0)  # the elements under the footing ran their RVEs
+    beside = mesh.f2t[0, mesh.boundaries["surface"]]
+    pressure = -force[-1] / width  # the footing's mean pressure at the end
+    assert np.all(-syy[under] > 1.2e5) and np.all(-syy[under] < pressure)
+    assert -syy[under].min() > -syy[beside].max()

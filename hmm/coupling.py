@@ -18,14 +18,13 @@ to ``t + dt``, in this order:
    to the nominal step's, since the noise in a correction does not shrink with the
    step), or a residual already within ``tol_residual``; then ``farm.commit()`` and
    the step is done. A step that has not converged in ``max_iterations``, whose
-   residual (or,
-   without the residual check, correction) grows three times in a row, or in which
-   a micro model's physics fails (an RVE that cannot relax), is **cut**:
-   ``farm.rollback()`` and the step is retried at half its size, down to
+   residual (or, without the residual check, correction) grows three times in a
+   row, or in which a micro model's physics fails (an RVE that cannot relax), is
+   **cut**: ``farm.rollback()`` and the step is retried at half its size, down to
    ``min_step`` times the nominal step, after which :class:`SolverError` stops the
    run; the solver keeps the last converged state (:func:`hmm.run.run_problem`
-   writes its frame and marks ``fields.h5`` as stopped). Any other exception of a micro
-   model (a bug, bad input) stops the run at once, naming the Gauss point.
+   writes its frame and marks ``fields.h5`` as stopped). Any other exception of a
+   micro model (a bug, bad input) stops the run at once, naming the Gauss point.
 """
 
 import logging

@@ -17,6 +17,7 @@ import pytest
 from scipy.optimize import linprog
 from scipy.spatial import ConvexHull
 
+import dem
 from dem._jit import kernel
 from dem.contact.detection.admm import N_WARM, admm_contact, make_admm
 from dem.contact.detection.nodes import nodes_as3, nodes_contact, surface_nodes
@@ -476,6 +477,48 @@ def test_a_stale_warm_start_is_rescued_by_a_cold_restart():
     assert warm[0, 14] == 1.0 and not np.allclose(warm, stale)
     again = detect(3, (BOX, BOX), geo, pos, rot, normal, warm, max_iter=cap)
     assert again[0] == 0 and again[4] <= 2
+
+
+def _cube_into_a_corner(tol, speed=0.01):
+    """A cube thrown diagonally into the inner corner of an L of two boxes (a
+    compound, anchored by its mass): ADMM detection, warm-started, cap 300."""
+    from dem import Box, Compound
+
+    h = 0.02
+    legs = Compound([(Box([0.1, 0.03, 0.03]), [0.0, 0.0, 0.0]),
+                     (Box([0.03, 0.03, 0.1]), [-0.07, 0.0, 0.13])])
+    b = dem.Bodies.empty(3)
+    b.add_shapes(legs, [[0.0, 0.0, 0.0]], 1e9)
+    b.add_shapes(Box([h] * 3), [[-0.04 + h + 1e-5, 0.0, 0.03 + h + 1e-5]], 1000.0,
+                 vel=[[-speed, 0.0, -speed]])
+    return dem.Simulation(b, dem.LinearSpring(kn=1e5), detection="admm",
+                          admm_max_iter=300, admm_tol=tol, threads=1)
+
+
+def test_admm_in_a_non_convex_corner_falls_back_then_stops_clearly():
+    """Thrown diagonally into the corner, the cube is as deep in one leg as in the
+    other, and the lower leg's end edge lies as deep below two of the cube's faces: a
+    crease of the summed SDFs. To 1e-6 the run goes through, touching both legs,
+    with some steps' warm solves spending the cap and rescued by a cold restart
+    (iterations > 300, counted in all); to 1e-8 warm and cold both stall and the run
+    stops, naming the pair (benchmarks/stability_map.py charts the speeds; the map's
+    other crossings are in tests/test_stability.py)."""
+    sim = _cube_into_a_corner(1e-6)
+    contacts, steps, rescued = 0, 0, 0
+    for _ in range(1000):
+        sim.run(1)
+        n = len(sim.contacts()["i"])
+        if n:
+            contacts, steps = max(contacts, n), steps + 1
+            rescued += int(sim.iters.max() > 300)
+        elif contacts:
+            break  # bounced off
+    assert contacts == 2 and 1 <= rescued < steps
+    with pytest.raises(dem.SimulationError,
+                       match=r"between bodies 0 and 1 did not converge in 300 ADMM "
+                             r"iterations, warm or cold"):
+        _cube_into_a_corner(1e-8).run(1000)
+
 
 # --------------------------------------------------------------------------- nodes
 def test_surface_nodes_lie_on_the_surface():

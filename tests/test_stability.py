@@ -342,4 +342,3 @@ def test_admm_with_too_small_a_cap_names_the_pair():
     sim = pair(200)
     sim.run(100)
     assert sim.iters.max() > 1
-

@@ -479,6 +479,32 @@ def test_a_stale_warm_start_is_rescued_by_a_cold_restart():
     assert again[0] == 0 and again[4] <= 2
 
 
+def test_a_face_nearly_level_on_a_wall_is_found_by_the_lp():
+    """A quadrilateral lying on a wall, its lower edge 6e-6 rad off level and 2.3 mm
+    deep (a pose met when polygons are poured onto a floor). Along that edge the
+    objective barely falls, so ADMM alone creeps (over 1,000 iterations) and the LP
+    polish must finish it; the LP's first vertex lies 4 cm out along the edge, beyond
+    the range where cuts are kept, and the face it reveals must still join the cuts
+    (taken nearer the body, on the same characteristic), or the LP returns that vertex
+    again and again. The contact is the deepest corner, found in a few iterations."""
+    verts = np.array([[-0.004938176654479447, -0.0024839804877735128],
+                      [-0.004684238262326203, -0.005872795682293172],
+                      [0.00700700587993958, 0.005002656089177525],
+                      [0.0033421685083334885, 0.0044206351911862925]])
+    row = ConvexPolygon(verts).rows()
+    geo = table(row, row).arrays()  # the wall needs no row
+    pos = np.array([[0.09231439313541133, -0.0010607669864125305], [0.0, 0.0]])
+    rot = np.array([[2.4465520229939424], [0.0]])
+    normal = np.array([[0.0, 0.0], [0.0, 1.0]])
+    world = pos[0] + verts @ rot_matrix(rot[0]).T
+    deepest = world[np.argmin(world[:, 1])]
+    ov = -deepest[1]
+    res = detect(2, (POLYGON, PLANE), geo, pos, rot, normal, max_iter=1000)
+    check(res, (ov, np.array([0.0, -1.0]), deepest + [0.0, 0.5 * ov]),
+          row["bounding_radius"])
+    assert res[4] <= 20
+
+
 def _cube_into_a_corner(tol, speed=0.01):
     """A cube thrown diagonally into the inner corner of an L of two boxes (a
     compound, anchored by its mass): ADMM detection, warm-started, cap 300."""

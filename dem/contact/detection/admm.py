@@ -248,15 +248,25 @@ def _project(fn, dim, bd, wx, wy, wz, rot, normal, geo, cc, nc, L):
     """Projection onto the body: ``w - max(phi, 0) grad phi / |grad phi|^2``.
 
     Outside, the linearisation at w (a supporting half-space of the body) joins the
-    constraint bundle ``cc``; returns ``(p, phi(w), nc)``.
+    constraint bundle ``cc``; returns ``(p, phi(w), nc)``. Beyond the range where cuts
+    are kept (:func:`_cut_range`) it is taken at the point of w's characteristic a
+    quarter of that range out: the same half-space for an exact SDF, and a far point
+    (an LP vertex along a face nearly parallel to the objective's level sets) must
+    still add the face it reveals, or the LP returns it again and again.
     """
     phi = _sdf(fn, dim, bd, wx, wy, wz, rot, normal, geo, np.int64(0))[0]
     if phi <= 0.0:
         return wx, wy, wz, phi, nc
     phi, gx, gy, gz = _sdf(fn, dim, bd, wx, wy, wz, rot, normal, geo, np.int64(1))
-    nc = _keep_cut(cc, nc, gx, gy, gz, phi - gx * wx - gy * wy - gz * wz, phi, wx, wy, wz,
-                   _cut_range(bd, L))
     c = phi / (gx * gx + gy * gy + gz * gz)
+    reach = _cut_range(bd, L)
+    kx, ky, kz, kphi, hx, hy, hz = wx, wy, wz, phi, gx, gy, gz
+    if phi > reach:  # (never for a wall: its range is infinite)
+        back = (phi - 0.25 * reach) / phi
+        kx, ky, kz = wx - back * c * gx, wy - back * c * gy, wz - back * c * gz
+        kphi, hx, hy, hz = _sdf(fn, dim, bd, kx, ky, kz, rot, normal, geo, np.int64(1))
+    nc = _keep_cut(cc, nc, hx, hy, hz, kphi - hx * kx - hy * ky - hz * kz, kphi, kx, ky,
+                   kz, reach)
     return wx - c * gx, wy - c * gy, wz - c * gz, phi, nc
 
 

@@ -19,8 +19,9 @@ from scipy.spatial import ConvexHull
 
 import dem
 from dem._jit import kernel
-from dem.contact.detection.admm import N_WARM, admm_contact, make_admm
-from dem.contact.detection.nodes import nodes_as3, nodes_contact, surface_nodes
+from dem.contact.detection.admm import N_WARM, admm_contact, custom_address, make_admm
+from dem.contact.detection.nodes import (nodes_as3, nodes_contact, nodes_contact_fn,
+                                        surface_nodes)
 from dem.shapes.polygon import ConvexPolygon
 from dem.shapes.table import BOX, CUSTOM, PLANE, POLYGON, SPHERE, ShapeTable
 
@@ -582,3 +583,30 @@ def test_nodes_get_better_with_more_nodes():
     print("nodes 10, 100, 1000, 10000: overlap error", np.round(errors, 5))
     assert all(e >= -1e-9 for e in errors)  # nodes only ever miss depth
     assert all(np.diff(errors) <= 0.0) and errors[-1] < 0.25 * errors[0]
+
+
+def test_nodes_see_a_custom_sdf():
+    """The node method against a user sphere (off its origin, turned) gives what it
+    gives against the table sphere it describes: the same deepest node, depth and
+    normal (before, a custom neighbour's SDF was NaN and no node ever touched it)."""
+    rng = np.random.default_rng(14)
+    c, s = np.cos(0.5), np.sin(0.5)
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    centre = np.array([0.2, -0.1, 0.3])
+    row_a = box_row([0.5, 0.4, 0.3])
+    geo_user = custom_table(row_a, custom_row([1.0, *centre], 1.0, turn, centre)).arrays()
+    geo_table = table(row_a, sphere_row(1.0)).arrays()
+    nodes = nodes_as3(surface_nodes(row_a, 300, 3))
+    fn = custom_address(user_sphere)
+    for _ in range(4):
+        e = rng.normal(size=3)
+        e /= np.linalg.norm(e)
+        pos = np.array([np.zeros(3), 1.25 * e])
+        rot = np.array([random_rot(rng, 3), random_rot(rng, 3)])
+        normal = np.zeros((2, 3))
+        user = nodes_contact_fn(fn, 3, 0, nodes, CUSTOM, 1, 1, 0.0, 0.0, 0.0, pos, rot,
+                                normal, geo_user)
+        ref = nodes_contact(3, 0, nodes, SPHERE, 1, 1, 0.0, 0.0, 0.0, pos, rot, normal,
+                            geo_table)
+        assert ref[0] > 0.0
+        np.testing.assert_allclose(user[:7], ref[:7], rtol=0.0, atol=1e-7)

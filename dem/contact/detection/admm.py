@@ -966,3 +966,13 @@ def make_admm(custom_sdf=None):
         _CUSTOM[custom_sdf] = (admm_contact_custom, address if numba.config.DISABLE_JIT
                                else wrapper)
     return _CUSTOM[custom_sdf][0]
+
+
+def custom_address(custom_sdf):
+    """The address of ``custom_sdf``'s C wrapper: the ``fn`` argument of the ``*_fn``
+    kernels (:func:`admm_contact_fn`,
+    :func:`dem.contact.detection.nodes.nodes_contact_fn`). Wraps it once, as
+    :func:`make_admm` does."""
+    make_admm(custom_sdf)
+    wrapper = _CUSTOM[custom_sdf][1]
+    return wrapper if numba.config.DISABLE_JIT else np.int64(wrapper.address)

@@ -17,8 +17,9 @@ import math
 import numpy as np
 
 from ..._jit import kernel
-from ...shapes.table import BOX, GRAD_STEP, PLANE, POLYGON, sdf_local, to_body, to_world
-from .admm import sdf_pair
+from ...shapes.table import (BOX, CUSTOM, GRAD_STEP, PLANE, POLYGON, sdf_local, to_body,
+                             to_world)
+from .admm import _sdf
 
 
 # --------------------------------------------------------------------------- nodes
@@ -177,8 +178,8 @@ def nodes_contact(dim, a, nodes_a, kb, sb, b, sx, sy, sz, pos, rot, normal, geo)
     nodes_a : (m, 3) float64
         A's nodes [m] in A's body frame (``z = 0`` in 2D; see :func:`nodes_as3`).
     kb, sb, b : int
-        Kind (SPHERE, BOX, POLYGON, POLYHEDRON rows or PLANE), shape-table row and
-        body index of B.
+        Kind (SPHERE, BOX, POLYGON, POLYHEDRON rows or PLANE; CUSTOM through
+        :func:`nodes_contact_fn`), shape-table row and body index of B.
     sx, sy, sz : float
         Periodic shift [m] added to ``b``'s position.
     pos, rot, normal, geo
@@ -192,9 +193,25 @@ def nodes_contact(dim, a, nodes_a, kb, sb, b, sx, sy, sz, pos, rot, normal, geo)
     iters : int
         0 (not iterative).
     """
+    return _nodes(np.int64(0), dim, a, nodes_a, kb, sb, b, sx, sy, sz, pos, rot, normal,
+                  geo)
+
+
+@kernel
+def nodes_contact_fn(fn, dim, a, nodes_a, kb, sb, b, sx, sy, sz, pos, rot, normal, geo):
+    """:func:`nodes_contact` with CUSTOM rows evaluated by the C function at address
+    ``fn`` (:func:`dem.contact.detection.admm.custom_address`)."""
+    return _nodes(fn, dim, a, nodes_a, kb, sb, b, sx, sy, sz, pos, rot, normal, geo)
+
+
+@kernel(inline=True)
+def _nodes(fn, dim, a, nodes_a, kb, sb, b, sx, sy, sz, pos, rot, normal, geo):
+    """:func:`nodes_contact` with ``fn`` the custom SDF's address (0: none)."""
     obx = pos[b, 0] + sx - pos[a, 0]  # B's centre relative to A's
     oby = pos[b, 1] + sy - pos[a, 1]
     obz = pos[b, 2] + sz - pos[a, 2] if dim == 3 else 0.0
+    h = GRAD_STEP * geo[8][sb] * geo[1][sb] if kb != PLANE else 1.0
+    bd = (np.int64(kb), np.int64(sb), np.int64(b), obx, oby, obz, h)
     best, bx, by, bz = math.inf, 0.0, 0.0, 0.0
     for i in range(nodes_a.shape[0]):
         x, y, z = to_world(dim, rot, a, nodes_a[i, 0], nodes_a[i, 1], nodes_a[i, 2])
@@ -202,14 +219,14 @@ def nodes_contact(dim, a, nodes_a, kb, sb, b, sx, sy, sz, pos, rot, normal, geo)
             d = normal[b, 0] * (x - obx) + normal[b, 1] * (y - oby)
             if dim == 3:
                 d += normal[b, 2] * (z - obz)
+        elif kb == CUSTOM:
+            d = _sdf(fn, dim, bd, x, y, z, rot, normal, geo, np.int64(0))[0]
         else:
             lx, ly, lz = to_body(dim, rot, b, x - obx, y - oby, z - obz)
             d = sdf_local(kb, sb, lx, ly, lz, geo)
         if d < best:
             best, bx, by, bz = d, x, y, z
-    h = GRAD_STEP * geo[8][sb] * geo[1][sb] if kb != PLANE else 1.0
-    bd = (np.int64(kb), np.int64(sb), np.int64(b), obx, oby, obz, h)
-    _, gx, gy, gz = sdf_pair(dim, bd, bx, by, bz, rot, normal, geo, np.int64(1))
+    _, gx, gy, gz = _sdf(fn, dim, bd, bx, by, bz, rot, normal, geo, np.int64(1))
     gn = math.sqrt(gx * gx + gy * gy + gz * gz)
     if gn > 0.0:
         gx, gy, gz = gx / gn, gy / gn, gz / gn

@@ -306,11 +306,17 @@ def test_a_cube_packing_consolidates_and_comes_to_rest():
     below its tolerance. Faces resting on faces and edges lying on faces are patches
     whose point is the intersection's centroid; while it jumped between the features of
     a patch (corners of either side, edge crossings) the packing never relaxed (0.04
-    after 60,000 steps for 100 cubes)."""
+    after 60,000 steps for 100 cubes).
+
+    This seed's packing creeps at rest: its proportional servo stalled 0.2 % off the
+    target (twice the tolerance) from about 20,000 steps to the 60,000-step cap. Past
+    half the cap the stalled servo's gain is doubled (RVE.STALL_CHECKS) and it ends at
+    33,300 steps."""
     law = dem.LinearSpring(kn=1e5, kt=5e4, mu=0.5)
-    packing = rve.generate(3, 60, (0.8e-3, 1.2e-3), law, p0=1e5, seed=1, damping=0.5,
-                           max_relax_steps=40000,
+    packing = rve.generate(3, 60, (0.8e-3, 1.2e-3), law, p0=1e5, seed=3, damping=0.5,
+                           max_relax_steps=60000,
                            shape=lambda r, rng: dem.Box([r / np.sqrt(3.0)] * 3))
+    assert packing.servo_boosts >= 1 and packing.last_relax_steps > 30000
     out = packing.response()
     assert out["unbalanced"] < packing.tol
     assert np.diag(out["stress"]) == pytest.approx([-1e5] * 3, rel=2e-3)

@@ -474,11 +474,12 @@ def _box_row(h):
 
 
 def admm_fallback(solve, geo, stacked, h):
-    from dem.contact.detection.admm import N_WARM
-
     """A warm start left from a pose far away (stale), then caps on the iterations:
-    the warm attempt fails, the cold restart succeeds (iterations > cap); below the
-    cold solve's own need, status 1."""
+    the warm attempt fails within its budget (``min(cap, WARM_MAX_ITER)``), the cold
+    restart succeeds (iterations > that budget); below the cold solve's own need,
+    status 1."""
+    from dem.contact.detection.admm import N_WARM, WARM_MAX_ITER
+
     pos_old, rot_old = stacked(h, h, 0.3, 0.05, axis=(1.0, 2.0, 0.5))
     pos_new, rot_new = stacked(h, h, 1.1, 0.02, axis=(-1.0, 0.3, 0.5))
     cold = solve(geo, pos_new, rot_new)[2]
@@ -488,7 +489,7 @@ def admm_fallback(solve, geo, stacked, h):
         solve(geo, pos_old, rot_old, warm=warm)
         st, _ov, it = solve(geo, pos_new, rot_new, warm=warm, max_iter=cap)
         rows.append({"cap": cap, "status": st, "iterations": it,
-                     "cold_restart": bool(st == 0 and it > cap)})
+                     "cold_restart": bool(st == 0 and it > min(cap, WARM_MAX_ITER))})
     return {"cold_iterations": cold, "rows": rows}
 
 
@@ -531,9 +532,10 @@ def admm_corner(quick):
     crease at the solution. Thrown twice as fast sideways, no crease. Per impact
     speed: the deepest overlap (relative to the cube's half width), the most ADMM
     iterations of a contact over the impact at tolerances 1e-8 and 1e-6 (cap 300,
-    warm-started from step to step), the steps whose warm solve spent the cap and was
-    rescued by a cold restart (iterations > 300, counted in all), or the error that
-    stopped the run (warm and cold both failed)."""
+    warm-started from step to step), the steps whose warm solve stalled and was
+    rescued by a cold restart (iterations > WARM_MAX_ITER, the warm attempt's budget,
+    counted in all), or the error that stopped the run (warm and cold both failed)."""
+    from dem.contact.detection.admm import WARM_MAX_ITER
     from dem.shapes import Box, Compound
 
     h = 0.02  # the cube's half width [m]
@@ -561,7 +563,7 @@ def admm_corner(quick):
                             most = int(np.max(sim.iters))
                             res["iterations"] = max(res["iterations"], most)
                             res["detections"] += 1
-                            res["cold_restarts"] += int(most > 300)  # warm cap spent
+                            res["cold_restarts"] += int(most > WARM_MAX_ITER)
                             res["depth"] = max(res["depth"], float(c["overlap"].max()) / h)
                             res["contacts"] = max(res["contacts"], len(c["i"]))
                         elif res["contacts"]:

@@ -182,8 +182,9 @@ class Simulation:
     admm_tol : float
         ADMM stopping tolerance, relative to the smaller body's bounding radius.
     admm_max_iter : int
-        ADMM iteration cap per solve (a warm solve that hits it retries cold; a cold
-        one that hits it stops the run, naming the pair).
+        ADMM iteration cap per solve (a warm solve retries cold after at most
+        ``dem.contact.detection.admm.WARM_MAX_ITER`` = 50 of them; a cold one that
+        hits the cap stops the run, naming the pair).
     threads : int, optional
         Threads for the compiled loops; default all of numba's threads for scenes of
         at least ``PARALLEL_MIN_BODIES`` bodies, else 1 (threads only cost time on

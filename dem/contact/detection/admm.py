@@ -71,8 +71,11 @@ iterates in the bodies' frames, so that it survives a rigid motion of the pair:
 Cold start: ``z = P(m)`` with ``m`` the midpoint of the two centres (for a plane: the
 foot of the other centre on it), ``u = +-t e`` with ``e`` the unit vector from A's to
 B's centre (the multiplier of two spheres), ``rho = RHO0``. A warm solve that does not
-converge in ``max_iter`` is retried cold once; if that fails too the status is 1 and
-the row is cleared.
+converge in ``min(max_iter, WARM_MAX_ITER)`` iterations is retried cold once, with the
+whole ``max_iter``; if that fails too the status is 1 and the row is cleared. (A warm
+start converges in one or two iterations or has gone stale: one that stalls, as where
+a cube slides past the end edge of a leg of an L, would otherwise spend the whole cap
+before a cold solve that needs a handful.)
 
 SDF evaluation. SPHERE, BOX, POLYGON and POLYHEDRON rows through
 :func:`dem.shapes.table.sdf_local`; a PLANE body is ``n . (x - p)`` with its world normal
@@ -108,6 +111,7 @@ RHO_MIN = 1.0 / 1024.0
 RHO_MAX = 1.0e6
 N_CUT = 8  # linearisations of each body's SDF kept per contact (shared by P1 and P2)
 N_POLISH = 4  # failed LP polishes before a solve stops trying
+WARM_MAX_ITER = 50  # iterations a warm attempt gets before its cold restart
 OK, FAILED = 0, 1
 
 
@@ -601,7 +605,8 @@ def _start(fn, dim, bc, st, cold, mx, my, mz, ex, ey, ez, L, rot, normal, geo, c
         st[CREASE] = 0.0
     st[G], st[G + 1], st[G + 2] = 0.0, 0.0, 0.0
     st[POLISH], st[TRIED], st[DONE], st[POLISHED] = N_POLISH, 0.0, 0.0, 0.0
-    st[ITS0], st[BUDGET], st[BOUND] = st[ITS], st[ITS] + max_iter, math.inf
+    budget = max_iter if cold else min(max_iter, WARM_MAX_ITER)
+    st[ITS0], st[BUDGET], st[BOUND] = st[ITS], st[ITS] + budget, math.inf
     return nc
 
 
@@ -896,7 +901,8 @@ def admm_contact(dim, ka, sa, a, kb, sb, b, sx, sy, sz, pos, rot, normal, geo, w
         Relative tolerance [-]: residuals below ``tol`` x the smaller bounding radius
         (``GRAD_STEP`` limits the differences' precision: ``tol`` >= about 1e-9).
     max_iter : int
-        Iteration cap of one attempt (warm, then cold) of each problem.
+        Iteration cap of each problem's cold attempt; a warm attempt gets at most
+        ``WARM_MAX_ITER`` of them before its cold restart.
 
     Returns
     -------

@@ -275,8 +275,8 @@ class RVE:
         self.deformation = deformation
         #: steps of the last load or relaxation
         self.last_relax_steps = 0
-        #: how often the last load or relaxation doubled a stalled servo's gain
-        #: (:attr:`STALL_CHECKS`)
+        #: how often the last :meth:`load` (or :meth:`apply_strain`) or
+        #: :meth:`consolidate` doubled a stalled servo's gain (:attr:`STALL_CHECKS`)
         self.servo_boosts = 0
         #: every step loads and relaxations have run, probes included (a work counter:
         #: :meth:`restore` does not reset it)
@@ -465,6 +465,7 @@ class RVE:
             raise ValueError("stress control needs relaxation: relax=False is for "
                              "strain-controlled increments only")
         deps[mask] = 0.0
+        self.servo_boosts = 0
         return self._drive(deps, target, mask, progress, relax)
 
     def consolidate(self, p0, friction=None, max_step_strain=1e-4, progress=None):
@@ -484,6 +485,7 @@ class RVE:
         target = -float(p0) * np.eye(self.dim)  # shear stresses driven to zero too
         full = np.ones((self.dim, self.dim), bool)
         zero = np.zeros((self.dim, self.dim))
+        self.servo_boosts = 0  # over both stages
         try:
             if friction is not None:  # a fragile frictionless packing: normal stresses
                 self.set_friction(friction)
@@ -507,7 +509,6 @@ class RVE:
         done_load = 0
         apart = 0
         boost, best, stalled, last_sign = 1.0, math.inf, 0, 0.0  # the stall watch
-        self.servo_boosts = 0
         lgrad = np.zeros((d, d))
         r = self.response(tangent=bool(mask.any()))
         while True:

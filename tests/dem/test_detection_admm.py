@@ -529,9 +529,8 @@ def test_admm_in_a_non_convex_corner_falls_back_then_stops_clearly():
     crease of the summed SDFs. To 1e-6 the run goes through, touching both legs,
     with some steps' warm solves stalling and rescued by a cold restart after their
     budget (iterations > WARM_MAX_ITER, counted in all); to 1e-8 warm and cold both
-    stall and the run
-    stops, naming the pair (benchmarks/stability_map.py charts the speeds; the map's
-    other crossings are in tests/test_stability.py)."""
+    stall and the run stops, naming the pair (benchmarks/stability_map.py charts the
+    speeds; the map's other crossings are in tests/test_stability.py)."""
     sim = _cube_into_a_corner(1e-6)
     contacts, steps, rescued = 0, 0, 0
     for _ in range(1000):

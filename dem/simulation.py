@@ -7,19 +7,10 @@ import numba
 import numpy as np
 
 from .boundary import PeriodicCell
-from .contact.loops import (
-    N_BLOCKS,
-    NONFINITE,
-    OK,
-    OVERLAP,
-    REBUILD,
-    inner_index,
-    stepper,
-)
+from .contact.loops import N_BLOCKS, inner_index, stepper
 from .contact.model import ContactModel
 from .contact.shape_loop import (
     N_WARM,
-    NOCONVERGE,
     method_for,
     pair_incidence,
     shape_stepper,
@@ -28,6 +19,7 @@ from .contact.shape_loop import (
 from .neighbors import NeighborList, carry_history, incidence
 from .shapes import Shape
 from .state import Bodies
+from .status import NOCONVERGE, NONFINITE, OK, OVERLAP, REBUILD
 
 log = logging.getLogger(__name__)
 

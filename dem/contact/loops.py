@@ -38,9 +38,8 @@ import numba
 import numpy as np
 
 from .._jit import kernel
+from ..status import NONFINITE, OK, OVERLAP, REBUILD
 from .laws import law_hertz_mindlin, law_linear
-
-OK, REBUILD, NONFINITE, OVERLAP = 0, 1, 2, 3
 
 _STEPPERS = {}
 

@@ -49,19 +49,17 @@ from ..shapes.table import (
     to_body,
     to_world,
 )
+from ..status import NOCONVERGE, NONFINITE, OK, OVERLAP, REBUILD
 from .detection.admm import admm_contact, make_admm
 from .detection.analytic import sphere_box, sphere_polytope
 from .detection.polytope import polytope_contact, polytope_plane
-from .loops import (NONFINITE, OK, OVERLAP, REBUILD, _apply_law, _cell_map,
-                    _cell_start, _deform_cell, _drift_centre, _strain_norm, body_force,
-                    moved2)
+from .loops import (_apply_law, _cell_map, _cell_start, _deform_cell, _drift_centre,
+                    _strain_norm, body_force, moved2)
 
 #: detection methods
 M_SPHERES, M_SPHERE_BOX, M_SPHERE_POLY, M_POLY, M_ADMM = 0, 1, 2, 3, 4
 #: wall methods
 W_SPHERE, W_POLY, W_ADMM = 0, 1, 2
-#: status code of a contact detection that did not converge (i, j in status_out)
-NOCONVERGE = 4
 #: per-contact warm-start row of the ADMM solver (see :mod:`dem.contact.detection.admm`)
 N_WARM = 16
 
@@ -315,7 +313,7 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                             DIM, ekind[pa], eshape[pa], pa, ekind[pb], eshape[pb], pb, sx,
                             sy, sz, epos, erot, enormal, geo, warm, k, tol, max_iter)
                         iters[k] = nit
-                        if st != 0:
+                        if st != OK:
                             status_out[0] = NOCONVERGE
                             status_out[1] = i
                             status_out[2] = j
@@ -341,7 +339,7 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                             DIM, ekind[pi], eshape[pi], pi, PLANE, 0, pw, 0.0, 0.0, 0.0,
                             epos, erot, enormal, geo, wwarm, k, tol, max_iter)
                         witers[k] = nit
-                        if st != 0:
+                        if st != OK:
                             status_out[0] = NOCONVERGE
                             status_out[1] = i
                             status_out[2] = w

@@ -13,10 +13,8 @@ import numpy as np
 from numba import prange
 
 from .._jit import kernel
+from ..status import NONFINITE, OK, REBUILD
 from .materials import P_ALPHA, P_C, P_KAPPA, P_MODEL, P_SCRIT, PMB_CODE
-
-#: status codes of the stepper
-OK, REBUILD, NONFINITE = 0, 1, 2
 
 
 @kernel(inline=True)

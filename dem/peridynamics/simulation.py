@@ -14,9 +14,8 @@ import numpy as np
 
 from ..shapes import Shape
 from ..simulation import PARALLEL_MIN_BODIES, SimulationError, progress_bar
+from ..status import NONFINITE, REBUILD
 from .kernels import (
-    NONFINITE,
-    REBUILD,
     bond_pass,
     energy_density,
     forces,

@@ -72,10 +72,11 @@ Cold start: ``z = P(m)`` with ``m`` the midpoint of the two centres (for a plane
 foot of the other centre on it), ``u = +-t e`` with ``e`` the unit vector from A's to
 B's centre (the multiplier of two spheres), ``rho = RHO0``. A warm solve that does not
 converge in ``min(max_iter, WARM_MAX_ITER)`` iterations is retried cold once, with the
-whole ``max_iter``; if that fails too the status is 1 and the row is cleared. (A warm
-start converges in one or two iterations or has gone stale: one that stalls, as where
-a cube slides past the end edge of a leg of an L, would otherwise spend the whole cap
-before a cold solve that needs a handful.)
+whole ``max_iter``; if that fails too the status is ``NOCONVERGE`` (1, see
+:mod:`dem.status`) and the row is cleared. (A warm start converges in one or two
+iterations or has gone stale: one that stalls, as where a cube slides past the end edge
+of a leg of an L, would otherwise spend the whole cap before a cold solve that needs a
+handful.)
 
 SDF evaluation. SPHERE, BOX, POLYGON and POLYHEDRON rows through
 :func:`dem.shapes.table.sdf_local`; a PLANE body is ``n . (x - p)`` with its world normal
@@ -96,6 +97,7 @@ from numba.extending import intrinsic, overload
 
 from ..._jit import kernel
 from ...shapes.table import CUSTOM, GRAD_STEP, PLANE, sdf_local, to_body, to_world
+from ...status import NOCONVERGE, OK
 
 # The solver's functions are compiled into the two cached kernels at the bottom
 # (admm_contact, admm_contact_fn), not cached themselves; the hot ones are inlined: a
@@ -112,7 +114,6 @@ RHO_MAX = 1.0e6
 N_CUT = 8  # linearisations of each body's SDF kept per contact (shared by P1 and P2)
 N_POLISH = 4  # failed LP polishes before a solve stops trying
 WARM_MAX_ITER = 50  # iterations a warm attempt gets before its cold restart
-OK, FAILED = 0, 1
 
 
 # --------------------------------------------------------------------------- SDFs
@@ -864,7 +865,7 @@ def _admm(fn, dim, ka, sa, a, kb, sb, b, sx, sy, sz, pos, rot, normal, geo, warm
             warm[k, 12 + p] = st[RHO]
         warm[k, 14] = 1.0
         warm[k, 15] = flags + state[0, CREASE] + 2.0 * state[1, CREASE]
-    status = OK if all_ok else FAILED
+    status = OK if all_ok else NOCONVERGE
     return status, ov, nx, ny, nz, cx, cy, cz, int(max(state[0, ITS], state[1, ITS]))
 
 
@@ -907,7 +908,8 @@ def admm_contact(dim, ka, sa, a, kb, sb, b, sx, sy, sz, pos, rot, normal, geo, w
     Returns
     -------
     status : int
-        0 converged, 1 a problem did not converge even from a cold start.
+        :mod:`dem.status` code: ``OK`` (0) converged, ``NOCONVERGE`` (1) a problem did
+        not converge even from a cold start.
     ov, nx, ny, nz, cx, cy, cz : float
         Overlap [m] (> 0 in contact), unit normal from a to b, contact point [m]
         (world frame; 2D: ``nz = cz = 0``).

@@ -461,7 +461,7 @@ def admm_panel(quick):
 
 
 def _rotation(q):
-    from dem.state import quat_to_matrix
+    from dem.rotation import quat_to_matrix
 
     return quat_to_matrix(np.asarray(q, float))
 

@@ -14,6 +14,7 @@ the step on which the trigger fires. Observers never change the state.
 import numpy as np
 
 from .contact.laws import contact_energy, contact_stiffness
+from .rotation import body_frame, world_frame
 from .shapes import Shape
 
 
@@ -301,24 +302,6 @@ def angular_momentum(bodies, origin=None):
         return np.array([orbit.sum() + spin_b[:, 0].sum()])
     spin = world_frame(bodies.rot[free], spin_b)
     return np.cross(x, p).sum(axis=0) + spin.sum(axis=0)
-
-
-def _quat_apply(q, v, inverse):
-    w, u = q[:, :1], q[:, 1:].copy()
-    if inverse:
-        u = -u
-    t = 2.0 * np.cross(u, v)
-    return v + w * t + np.cross(u, t)
-
-
-def body_frame(rot, vec):
-    """World vectors (n, 3) into the bodies' frames (3D quaternions); 2D: unchanged."""
-    return vec if rot.shape[1] == 1 else _quat_apply(rot, vec, True)
-
-
-def world_frame(rot, vec):
-    """Body-frame vectors (n, 3) into the world frame; 2D: unchanged."""
-    return vec if rot.shape[1] == 1 else _quat_apply(rot, vec, False)
 
 
 def elastic_energy(sim):

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .rotation import matrix_to_quat, quat_mul, quat_rotate
 from .shapes import Plane, Shape
 from .shapes.table import ShapeTable
 
@@ -346,47 +347,3 @@ class Bodies:
     def has_shapes(self):
         """Whether any body is neither a sphere nor a plane."""
         return bool(np.any(self.shape >= 0))
-
-
-def quat_mul(p, q):
-    """Hamilton product of quaternions (w, x, y, z)."""
-    w1, x1, y1, z1 = p
-    w2, x2, y2, z2 = q
-    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-                     w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-                     w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
-
-
-def quat_rotate(q, v):
-    """Rotate vector ``v`` (3,) by unit quaternion ``q``."""
-    return quat_to_matrix(q) @ np.asarray(v, np.float64)
-
-
-def quat_to_matrix(q):
-    """Rotation matrix (3, 3) of a unit quaternion (w, x, y, z)."""
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
-def matrix_to_quat(r):
-    """Unit quaternion (w, x, y, z) of a rotation matrix (3, 3), w >= 0."""
-    r = np.asarray(r, np.float64)
-    t = np.trace(r)
-    if t > 0.0:
-        s = 2.0 * np.sqrt(t + 1.0)
-        q = np.array([0.25 * s, (r[2, 1] - r[1, 2]) / s, (r[0, 2] - r[2, 0]) / s,
-                      (r[1, 0] - r[0, 1]) / s])
-    else:
-        i = int(np.argmax(np.diag(r)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        s = 2.0 * np.sqrt(1.0 + r[i, i] - r[j, j] - r[k, k])
-        q = np.empty(4)
-        q[0] = (r[k, j] - r[j, k]) / s
-        q[1 + i] = 0.25 * s
-        q[1 + j] = (r[j, i] + r[i, j]) / s
-        q[1 + k] = (r[k, i] + r[i, k]) / s
-    q /= np.linalg.norm(q)
-    return q if q[0] >= 0.0 else -q

@@ -39,6 +39,7 @@ import numba
 import numpy as np
 
 from .._jit import kernel
+from ..rotation import to_body, to_world
 from ..shapes.table import (
     BOX,
     CUSTOM,
@@ -46,8 +47,6 @@ from ..shapes.table import (
     POLYGON,
     POLYHEDRON,
     SPHERE,
-    to_body,
-    to_world,
 )
 from ..status import NOCONVERGE, NONFINITE, OK, OVERLAP, REBUILD
 from .detection.admm import admm_contact, make_admm

@@ -59,6 +59,7 @@ import h5py
 import numpy as np
 
 from ..observers import Periodic
+from ..rotation import rotation_matrices
 from ..shapes import Shape
 
 log = logging.getLogger(__name__)
@@ -123,44 +124,6 @@ def frame_name(index):
 
 #: shape kinds drawn as surfaces: those whose shape-table row holds vertices
 SURFACE_KINDS = (Shape.BOX, Shape.POLYGON, Shape.POLYHEDRON)
-
-
-def rotation_matrices(rot):
-    """Body-to-world rotation matrices of orientations ``rot``.
-
-    Parameters
-    ----------
-    rot : ndarray, shape (n, 1) or (n, 4), float64
-        Angles [rad] (2D) or unit quaternions (w, x, y, z) (3D), as in ``Bodies.rot``.
-
-    Returns
-    -------
-    ndarray, shape (n, 3, 3), float64
-        In 2D the rotation about z.
-
-    Examples
-    --------
-    >>> r = rotation_matrices(np.array([[np.pi / 2]]))
-    >>> np.round(r[0] @ [1.0, 0.0, 0.0], 12).tolist()
-    [0.0, 1.0, 0.0]
-    """
-    rot = np.asarray(rot, dtype=np.float64)
-    n = rot.shape[0]
-    out = np.zeros((n, 3, 3))
-    if rot.shape[1] == 1:
-        c, s = np.cos(rot[:, 0]), np.sin(rot[:, 0])
-        out[:, 0, 0], out[:, 0, 1] = c, -s
-        out[:, 1, 0], out[:, 1, 1] = s, c
-        out[:, 2, 2] = 1.0
-        return out
-    w, x, y, z = rot.T
-    out[:, 0] = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z),
-                          2 * (x * z + w * y)], axis=1)
-    out[:, 1] = np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z),
-                          2 * (y * z - w * x)], axis=1)
-    out[:, 2] = np.stack([2 * (x * z - w * y), 2 * (y * z + w * x),
-                          1 - 2 * (x * x + y * y)], axis=1)
-    return out
 
 
 def shape_surfaces(bodies):

@@ -32,6 +32,7 @@ import numpy as np
 from scipy.optimize import linprog
 from scipy.spatial import HalfspaceIntersection, QhullError
 
+from ..rotation import matrix_to_quat, quat_to_matrix
 from .box import Box
 from .massprops import check_density, moments_about_axes, principal_axes
 from .polygon import ConvexPolygon, as_points
@@ -57,8 +58,6 @@ def _rotation(rotation, dim):
             a = float(r.reshape(-1)[0])
             return np.array([[math.cos(a), -math.sin(a)], [math.sin(a), math.cos(a)]])
     elif r.shape == (4,):
-        from ..state import quat_to_matrix
-
         norm = np.linalg.norm(r)
         if not norm > 0.0:
             raise ValueError("a part's quaternion must be non-zero")
@@ -335,8 +334,6 @@ class Compound:
     def part_poses(self):
         """Per part: ``(shape, offset (3,), orientation)`` in the compound's frame, the
         orientation an angle [rad] (2D) or a unit quaternion (w, x, y, z) (3D)."""
-        from ..state import matrix_to_quat
-
         out = []
         for s, r, t in self.parts:
             off = np.zeros(3)

@@ -45,6 +45,7 @@ import math
 import numpy as np
 
 from .._jit import kernel
+from ..rotation import to_body
 
 SPHERE, PLANE, BOX, POLYGON, POLYHEDRON, CUSTOM, COMPOUND = 0, 1, 2, 3, 4, 5, 6
 #: central-difference step of the SDF gradient, relative to the shape's bounding radius
@@ -293,34 +294,6 @@ def sdf_points(kind, s, pts, geo, out):
 
 
 # --------------------------------------------------------------------------- frames
-@kernel(inline=True)
-def _quat_rotate(w, qx, qy, qz, x, y, z):
-    """Rotate (x, y, z) by the unit quaternion (w, q): v + 2w (q x v) + 2 q x (q x v)."""
-    tx = 2.0 * (qy * z - qz * y)
-    ty = 2.0 * (qz * x - qx * z)
-    tz = 2.0 * (qx * y - qy * x)
-    return (x + w * tx + (qy * tz - qz * ty), y + w * ty + (qz * tx - qx * tz),
-            z + w * tz + (qx * ty - qy * tx))
-
-
-@kernel(inline=True)
-def to_world(dim, rot, b, x, y, z):
-    """Rotate a body-frame vector of body ``b`` into the world frame (no translation)."""
-    if dim == 2:
-        c, s = math.cos(rot[b, 0]), math.sin(rot[b, 0])
-        return c * x - s * y, s * x + c * y, 0.0
-    return _quat_rotate(rot[b, 0], rot[b, 1], rot[b, 2], rot[b, 3], x, y, z)
-
-
-@kernel(inline=True)
-def to_body(dim, rot, b, x, y, z):
-    """Rotate a world-frame vector into body ``b``'s frame (the inverse of :func:`to_world`)."""
-    if dim == 2:
-        c, s = math.cos(rot[b, 0]), math.sin(rot[b, 0])
-        return c * x + s * y, -s * x + c * y, 0.0
-    return _quat_rotate(rot[b, 0], -rot[b, 1], -rot[b, 2], -rot[b, 3], x, y, z)
-
-
 @kernel(inline=True)
 def sdf_world(dim, kind, s, b, x, y, z, pos, rot, geo):
     """Signed distance [m] of world point (x, y, z) to body ``b`` (shape ``kind``, row ``s``)."""

@@ -15,7 +15,7 @@ from dem.peridynamics.beams import (
     cantilever_deflection,
     cantilever_theory,
 )
-from dem.state import matrix_to_quat, quat_mul
+from dem.rotation import matrix_to_quat, quat_mul
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "beams_cantilever.py"
 
@@ -178,7 +178,7 @@ def test_rigid_motion_gives_no_force_and_rotates_forces(dim):
         angle = 2.3
         Q = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
     else:
-        Q = dem.state.quat_to_matrix(random_rotation(rng))
+        Q = dem.rotation.quat_to_matrix(random_rotation(rng))
 
     def move(b):
         out = b.copy()

@@ -25,8 +25,8 @@ import dem
 from dem.io.checkpoint import read_bodies, write_bodies
 from dem.io.hdf5 import shape_surfaces
 from dem.observers import angular_momentum, kinetic_energy
+from dem.rotation import quat_to_matrix
 from dem.shapes import Box, Compound, ConvexPolygon, ConvexPolyhedron, Sphere
-from dem.state import quat_to_matrix
 
 RHO = 1000.0
 

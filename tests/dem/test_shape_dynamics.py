@@ -20,8 +20,8 @@ import pytest
 
 import dem
 from dem.observers import angular_momentum, elastic_energy, kinetic_energy
+from dem.rotation import matrix_to_quat, quat_to_matrix
 from dem.shapes import Box, ConvexPolygon, ConvexPolyhedron
-from dem.state import matrix_to_quat, quat_to_matrix
 from dem.state_objects import ShapeScale
 
 RHO = 1000.0
@@ -75,7 +75,7 @@ def test_elastic_polytope_collision_conserves(dim):
             [[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)]) * 0.03)
         q1 = _quat([0, 0, 1], np.pi / 4)
         q2 = _quat([0, 1, 0], -np.arctan(1 / np.sqrt(2)))
-        from dem.state import quat_mul
+        from dem.rotation import quat_mul
         rot_a, rot_b = [quat_mul(q2, q1)], [_quat([1, 0, 0], 0.0)]
         pos = [[0.0, 0.0, 0.0], [0.11, 0.004, -0.003]]
         vel = [[1.0, 0.0, 0.0], [-0.5, 0.05, 0.0]]

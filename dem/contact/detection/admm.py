@@ -96,7 +96,8 @@ from numba.core import types
 from numba.extending import intrinsic, overload
 
 from ..._jit import kernel
-from ...shapes.table import CUSTOM, GRAD_STEP, PLANE, sdf_local, to_body, to_world
+from ...rotation import to_body, to_world
+from ...shapes.table import CUSTOM, GRAD_STEP, PLANE, sdf_local
 from ...status import NOCONVERGE, OK
 
 # The solver's functions are compiled into the two cached kernels at the bottom

@@ -22,7 +22,7 @@ The two cases meet continuously when the centre crosses a face.
 import math
 
 from ..._jit import kernel
-from ...shapes.table import to_body, to_world
+from ...rotation import to_body, to_world
 from .polytope import TIE
 
 

@@ -17,8 +17,8 @@ import math
 import numpy as np
 
 from ..._jit import kernel
-from ...shapes.table import (BOX, CUSTOM, GRAD_STEP, PLANE, POLYGON, sdf_local, to_body,
-                             to_world)
+from ...rotation import to_body, to_world
+from ...shapes.table import BOX, CUSTOM, GRAD_STEP, PLANE, POLYGON, sdf_local
 from .admm import _sdf
 
 

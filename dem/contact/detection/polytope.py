@@ -161,7 +161,7 @@ import math
 import numpy as np
 
 from ..._jit import kernel
-from ...shapes.table import to_body, to_world
+from ...rotation import to_body, to_world
 from .sat import cross3, face_row3, sat_contact3
 
 #: relative tolerance of ties (equal depths, equally deep faces or vertices)

@@ -1,6 +1,6 @@
 """Sweeps of standalone RVE tests: the file format, ``batch.h5`` and the summaries.
 
-``mpiexec -n N hmm batch sweep.toml`` (:func:`cmd_batch`). A sweep file holds a
+``mpiexec -n N hmm batch sweep.toml`` (:func:`hmm.cli.cmd_batch`). A sweep file holds a
 ``[base]`` experiment (the sections of an ``hmm rve`` file: ``packing``, ``contact``,
 ``test``) and a ``[sweep]`` of variations of it: a ``grid`` (key path -> values, the
 Cartesian product) or a ``list`` of override tables. Every experiment is validated against :data:`hmm.experiment.RVE_SCHEMA` before anything
@@ -26,7 +26,6 @@ import io
 import itertools
 import json
 import logging
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -35,12 +34,11 @@ import numpy as np
 from dem.io.scene import Key, SceneError, Section, read_toml, validate
 
 from .experiment import RVE_SCHEMA, SUMMARY_UNITS, UNITS, validate_config
-from .farm import mpi_world
 
 log = logging.getLogger(__name__)
 
-__all__ = ["BATCH_SCHEMA", "Experiment", "Store", "Sweep", "cmd_batch", "expand",
-           "experiment_id", "load_sweep", "read_batch", "write_summaries"]
+__all__ = ["BATCH_SCHEMA", "Experiment", "Store", "Sweep", "expand", "experiment_id",
+           "load_sweep", "read_batch", "write_summaries"]
 
 FORMAT, VERSION = "hmm.batch", 1
 OUTPUTS = ("batch.h5", "summary.csv", "summary.png")
@@ -431,62 +429,3 @@ def _write_figure(path, sweep, rows):
     ax.set_title(f"{Path(sweep.source).name}: {len(done)} of {len(rows)} "
                  f"experiments done", fontsize="medium")
     save_figure(fig, path, dpi=110)
-
-
-# --------------------------------------------------------------------------- CLI
-def cmd_batch(args):
-    """``hmm batch FILE``: run a sweep of RVE tests; call it on every rank.
-
-    ``args`` has ``file`` (the TOML), ``output`` (directory or None) and
-    ``overwrite``; optional ``no_progress``. Returns the exit status on every
-    rank: 0 every experiment done, 1 some failed or the batch stopped early, 2 bad
-    input (nothing ran), 130 interrupted. Only rank 0 prints.
-    """
-    from .queue import RankFailure, run_batch  # here: hmm.queue imports this module
-
-    MPI, comm = mpi_world()
-    rank = 0 if comm is None else comm.rank
-    sweep = error = None
-    if rank == 0:
-        try:
-            sweep = load_sweep(args.file)
-        except SceneError as exc:
-            error = str(exc)
-    if comm is not None:
-        error = comm.bcast(error, root=0)
-    if error is not None:
-        return _error(error, 2) if rank == 0 else 2
-    try:
-        report = run_batch(sweep, getattr(args, "output", None),
-                           overwrite=getattr(args, "overwrite", False),
-                           progress=not getattr(args, "no_progress", False)
-                           and sys.stderr.isatty(), world=(MPI, comm))
-    except (SceneError, OSError) as exc:
-        return _error(exc, 2) if rank == 0 else 2
-    except KeyboardInterrupt:
-        return _error("interrupted; rerun the same command to resume", 130) \
-            if rank == 0 else 130
-    except RankFailure as exc:  # a worker: rank 0 reports its own failure
-        return exc.code
-    if rank != 0:
-        return _status(report)
-    r = report
-    ran = r.n_total - r.n_skipped
-    if r.aborted:
-        return _error(f"{r.aborted}; the batch stopped ({r.n_done} of {r.n_total} "
-                      f"experiments done, in {r.files[0]})", 1)
-    print(f"hmm batch {args.file}: {r.n_total} experiments ({ran} run, "
-          f"{r.n_skipped} already in {Path(r.files[0]).name}) on {r.ranks} "
-          f"rank{'s' * (r.ranks > 1)} in {r.wall_time:.1f} s: {r.n_done} done, "
-          f"{r.n_failed} failed (did not relax)\n"
-          f"  output: {', '.join(r.files)}")
-    return _status(report)
-
-
-def _status(report):
-    return 1 if report.aborted or report.n_failed else 0
-
-
-def _error(msg, code):
-    print("hmm batch: error: " + " ".join(str(msg).split()), file=sys.stderr)
-    return code

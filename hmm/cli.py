@@ -14,6 +14,10 @@
 Exit status: 0 on success, 1 when the run fails (no convergence, a micro model that
 cannot relax), 2 on bad input (invalid file, existing output, bad arguments). Errors
 are one line on stderr, ``hmm <command>: error: ...``, never a traceback.
+
+The commands live here and import the modules that do the work (:mod:`hmm.run`,
+:mod:`hmm.experiment`, :mod:`hmm.batch`, :mod:`hmm.queue`) when they run; none of those
+imports this module.
 """
 
 import logging
@@ -58,7 +62,7 @@ def _parser():
                          description="Consolidate a periodic packing, then compress it "
                                      "(biaxial in 2D, triaxial in 3D).")
     rve.add_argument("file", type=Path, help="the RVE test file (TOML)")
-    rve.set_defaults(func=_cmd_rve)
+    rve.set_defaults(func=cmd_rve)
     batch = sub.add_parser("batch", parents=[common], help="run a sweep of RVE tests",
                            description="Many standalone RVE tests from one sweep file, "
                                        "over MPI ranks with a dynamic queue when started "
@@ -100,7 +104,13 @@ def _error(prog, msg, code):
     import os
 
     if os.environ.get("PMI_RANK", "0") == "0":  # under mpiexec every rank fails alike
-        print(f"{prog}: error: " + " ".join(str(msg).split()), file=sys.stderr)
+        _report(prog, msg, code)
+    return code
+
+
+def _report(prog, msg, code):
+    """Print ``prog: error: msg`` as one line on stderr; return ``code``."""
+    print(f"{prog}: error: " + " ".join(str(msg).split()), file=sys.stderr)
     return code
 
 
@@ -186,17 +196,111 @@ def _share_cores(n_ranks):
                                          (os.cpu_count() or 1) // n_ranks)))
 
 
-def _cmd_rve(args):
-    from .experiment import cmd_rve
+def cmd_rve(args):
+    """``hmm rve FILE``: run an RVE compression test and print its summary.
 
-    return cmd_rve(args)
+    ``args`` has ``file`` (the TOML), ``output`` (directory or None) and
+    ``overwrite``; optional ``no_progress``. Returns the exit status: 0 done, 1 the
+    packing did not relax, 2 bad input (invalid file, existing output).
+    """
+    from dem.io.scene import SceneError
+    from dem.simulation import SimulationError
+
+    from .experiment import load_config, run_experiment
+
+    try:
+        cfg = load_config(args.file)
+        result = run_experiment(cfg, getattr(args, "output", None),
+                                overwrite=getattr(args, "overwrite", False),
+                                progress=not getattr(args, "no_progress", False)
+                                and sys.stderr.isatty())
+    except (SceneError, OSError) as exc:  # FileExistsError is an OSError
+        return _report("hmm rve", exc, 2)
+    except SimulationError as exc:
+        return _report("hmm rve", f"the test failed: {exc}", 1)
+    except KeyboardInterrupt:
+        return _report("hmm rve", "interrupted", 130)
+    s = result.summary
+    kind = "biaxial" if s["dim"] == 2 else "triaxial"
+    lo = 0.8 * result.curves["axial_strain"][-1]
+    print(f"hmm rve {args.file}: drained {kind} test, {s['n_particles']} "
+          f"{s['particles']}, "
+          f"confining {s['confining']:.4g} Pa\n"
+          f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
+          f"  peak friction angle      {s['peak_friction_angle']:.2f} deg "
+          f"(q/p = {s['peak_stress_ratio']:.4f} at axial strain "
+          f"{100 * s['peak_axial_strain']:.2f} %)\n"
+          f"  dilatancy angle at peak  {s['dilatancy_angle']:.2f} deg\n"
+          f"  critical friction angle  {s['critical_friction_angle']:.2f} deg "
+          f"(mean over axial strain >= {100 * lo:.2f} %)\n"
+          f"  volumetric strain        {100 * s['final_volumetric_strain']:.3f} % "
+          f"at the end (contraction > 0)\n"
+          f"  wall time                {s['wall_time']:.3g} s\n"
+          f"  output                   {', '.join(str(p) for p in result.files)}")
+    return 0
 
 
 def _cmd_batch(args):
-    from .batch import cmd_batch
     from .farm import mpi_world
 
     _, comm = mpi_world()
     if comm is not None:
         _share_cores(comm.Get_size())
     return cmd_batch(args)
+
+
+def cmd_batch(args):
+    """``hmm batch FILE``: run a sweep of RVE tests; call it on every rank.
+
+    ``args`` has ``file`` (the TOML), ``output`` (directory or None) and
+    ``overwrite``; optional ``no_progress``. Returns the exit status on every
+    rank: 0 every experiment done, 1 some failed or the batch stopped early, 2 bad
+    input (nothing ran), 130 interrupted. Only rank 0 prints.
+    """
+    from dem.io.scene import SceneError
+
+    from .batch import load_sweep
+    from .farm import mpi_world
+    from .queue import RankFailure, run_batch
+
+    MPI, comm = mpi_world()
+    rank = 0 if comm is None else comm.rank
+    sweep = err = None
+    if rank == 0:
+        try:
+            sweep = load_sweep(args.file)
+        except SceneError as exc:
+            err = str(exc)
+    if comm is not None:
+        err = comm.bcast(err, root=0)
+    if err is not None:
+        return _report("hmm batch", err, 2) if rank == 0 else 2
+    try:
+        report = run_batch(sweep, getattr(args, "output", None),
+                           overwrite=getattr(args, "overwrite", False),
+                           progress=not getattr(args, "no_progress", False)
+                           and sys.stderr.isatty(), world=(MPI, comm))
+    except (SceneError, OSError) as exc:
+        return _report("hmm batch", exc, 2) if rank == 0 else 2
+    except KeyboardInterrupt:
+        return _report("hmm batch", "interrupted; rerun the same command to resume",
+                       130) if rank == 0 else 130
+    except RankFailure as exc:  # a worker: rank 0 reports its own failure
+        return exc.code
+    if rank != 0:
+        return _batch_status(report)
+    r = report
+    ran = r.n_total - r.n_skipped
+    if r.aborted:
+        return _report("hmm batch", f"{r.aborted}; the batch stopped ({r.n_done} of "
+                       f"{r.n_total} experiments done, in {r.files[0]})", 1)
+    print(f"hmm batch {args.file}: {r.n_total} experiments ({ran} run, "
+          f"{r.n_skipped} already in {Path(r.files[0]).name}) on {r.ranks} "
+          f"rank{'s' * (r.ranks > 1)} in {r.wall_time:.1f} s: {r.n_done} done, "
+          f"{r.n_failed} failed (did not relax)\n"
+          f"  output: {', '.join(r.files)}")
+    return _batch_status(report)
+
+
+def _batch_status(report):
+    return 1 if report.aborted or report.n_failed else 0

@@ -28,7 +28,6 @@ The file format is :data:`RVE_SCHEMA` (validated by :func:`dem.io.scene.validate
 import json
 import logging
 import math
-import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,10 +40,9 @@ from dem.io.text import fmt as _fmt
 
 log = logging.getLogger(__name__)
 
-__all__ = ["RVE_SCHEMA", "SUMMARY_UNITS", "UNITS", "CompressionResult", "cmd_rve",
-           "compress", "dilatancy_angle", "friction_angle", "load_config",
-           "make_packing", "output_paths", "run_experiment", "stress_invariants",
-           "validate_config"]
+__all__ = ["RVE_SCHEMA", "SUMMARY_UNITS", "UNITS", "CompressionResult", "compress",
+           "dilatancy_angle", "friction_angle", "load_config", "make_packing",
+           "output_paths", "run_experiment", "stress_invariants", "validate_config"]
 
 _POSITIVE = Range(0.0, lo_closed=False)
 _NONNEGATIVE = Range(0.0)
@@ -583,50 +581,3 @@ def _write_figure(path, result):
     fig.suptitle(f"drained {test} test, {s['n_particles']} {s['particles']}, confining "
                  f"{s['confining']:.4g} Pa, e0 = {s['initial_void_ratio']:.3f}")
     save_figure(fig, path, dpi=120)
-
-
-# --------------------------------------------------------------------------- CLI
-def cmd_rve(args):
-    """``hmm rve FILE``: run an RVE compression test and print its summary.
-
-    ``args`` has ``file`` (the TOML), ``output`` (directory or None) and
-    ``overwrite``; optional ``no_progress``. Returns the exit status: 0 done, 1 the
-    packing did not relax, 2 bad input (invalid file, existing output).
-    """
-    from dem.simulation import SimulationError
-
-    try:
-        cfg = load_config(args.file)
-        result = run_experiment(cfg, getattr(args, "output", None),
-                                overwrite=getattr(args, "overwrite", False),
-                                progress=not getattr(args, "no_progress", False)
-                                and sys.stderr.isatty())
-    except (SceneError, OSError) as exc:  # FileExistsError is an OSError
-        return _error(exc, 2)
-    except SimulationError as exc:
-        return _error(f"the test failed: {exc}", 1)
-    except KeyboardInterrupt:
-        return _error("interrupted", 130)
-    s = result.summary
-    kind = "biaxial" if s["dim"] == 2 else "triaxial"
-    lo = 0.8 * result.curves["axial_strain"][-1]
-    print(f"hmm rve {args.file}: drained {kind} test, {s['n_particles']} "
-          f"{s['particles']}, "
-          f"confining {s['confining']:.4g} Pa\n"
-          f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
-          f"  peak friction angle      {s['peak_friction_angle']:.2f} deg "
-          f"(q/p = {s['peak_stress_ratio']:.4f} at axial strain "
-          f"{100 * s['peak_axial_strain']:.2f} %)\n"
-          f"  dilatancy angle at peak  {s['dilatancy_angle']:.2f} deg\n"
-          f"  critical friction angle  {s['critical_friction_angle']:.2f} deg "
-          f"(mean over axial strain >= {100 * lo:.2f} %)\n"
-          f"  volumetric strain        {100 * s['final_volumetric_strain']:.3f} % "
-          f"at the end (contraction > 0)\n"
-          f"  wall time                {s['wall_time']:.3g} s\n"
-          f"  output                   {', '.join(str(p) for p in result.files)}")
-    return 0
-
-
-def _error(msg, code):
-    print("hmm rve: error: " + " ".join(str(msg).split()), file=sys.stderr)
-    return code

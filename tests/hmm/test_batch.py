@@ -13,7 +13,8 @@ import pytest
 
 from dem.io.scene import SceneError, schema_markdown
 from hmm import batch, queue
-from hmm.batch import BATCH_SCHEMA, cmd_batch, expand, load_sweep, read_batch
+from hmm.batch import BATCH_SCHEMA, expand, load_sweep, read_batch
+from hmm.cli import cmd_batch
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -10,9 +10,9 @@ import pytest
 
 from dem.io.scene import SceneError, schema_markdown
 from dem.rve import RVE
+from hmm.cli import cmd_rve
 from hmm.experiment import (
     RVE_SCHEMA,
-    cmd_rve,
     load_config,
     run_experiment,
     validate_config,

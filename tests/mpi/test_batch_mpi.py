@@ -19,7 +19,8 @@ import pytest
 MPI = pytest.importorskip("mpi4py.MPI")
 
 from hmm import batch, queue
-from hmm.batch import cmd_batch, load_sweep, read_batch
+from hmm.batch import load_sweep, read_batch
+from hmm.cli import cmd_batch
 from hmm.queue import run_batch
 
 pytestmark = pytest.mark.mpi

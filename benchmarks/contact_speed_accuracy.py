@@ -131,7 +131,7 @@ def main():
         geo = b.table.arrays()
         kind = int(b.kind[0])
         size = float(b.radius[0])
-        exact = kind != 5
+        exact = kind != dem.Shape.CUSTOM
         pos, rot, normal = b.pos, b.rot, b.normal
         out = np.zeros((m_pairs, 8))
         iters = np.zeros(m_pairs, np.int64)

@@ -24,6 +24,7 @@ from ._jit import set_threads
 from .contact.laws import LinearSpring
 from .io import H5Writer
 from .observers import kinetic_energy
+from .shapes import Shape
 from .simulation import Simulation
 from .state import Bodies
 
@@ -162,7 +163,7 @@ def visualize(result):
 
     sim = result["sim"]
     b = sim.bodies
-    sph = np.flatnonzero(b.kind == 0)
+    sph = np.flatnonzero(b.kind == Shape.SPHERE)
     fig = Figure(figsize=(10, 4), layout="constrained")
     ax1, ax2 = fig.subplots(1, 2)
     t, ke = result["times"][1:], result["kinetic"][1:]

@@ -18,6 +18,7 @@ import numpy as np
 
 from ._jit import kernel
 from .boundary import PeriodicCell
+from .shapes import Shape
 
 log = logging.getLogger(__name__)
 
@@ -304,8 +305,8 @@ class NeighborList:
         """Rebuild both lists from the current positions (wrapping periodic axes)."""
         d = bodies.dim
         # every particle (sphere or shape, by its bounding radius) against every other
-        spheres = np.flatnonzero(bodies.kind != 1).astype(np.int32)
-        walls = bodies.ids(1)
+        spheres = np.flatnonzero(bodies.kind != Shape.PLANE).astype(np.int32)
+        walls = bodies.ids(Shape.PLANE)
         box = self.box or Box(np.zeros(d), np.zeros(d), np.zeros(d, bool))
         box.wrap(bodies.pos, spheres)
         if spheres.size == 0:

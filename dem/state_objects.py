@@ -9,6 +9,8 @@ from typing import Protocol
 
 import numpy as np
 
+from .shapes import Shape
+
 
 class StateObject(Protocol):
     """What the simulation needs from a time-dependent state."""
@@ -86,8 +88,8 @@ class ShapeScale(RK2):
 
     def _bind(self, sim):
         b = sim.bodies
-        if np.any(b.table.kind[self.rows] == 6) or np.any(np.isin(self.rows,
-                                                                   b.table.part_row)):
+        if (np.any(b.table.kind[self.rows] == Shape.COMPOUND)
+                or np.any(np.isin(self.rows, b.table.part_row))):
             raise ValueError("ShapeScale cannot grow a compound (dem.Compound) or its "
                              "parts: scale the parts' shapes before building the bodies")
         ids = np.flatnonzero(np.isin(b.shape, self.rows))

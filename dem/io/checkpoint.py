@@ -34,6 +34,7 @@ import numpy as np
 
 from ..boundary import PeriodicCell
 from ..neighbors import Box
+from ..shapes import Shape
 from ..simulation import Simulation
 from ..state import Bodies
 from .hdf5 import publish, read_bounded
@@ -79,6 +80,8 @@ _TABLE_SPEC = (("kind", (), _I8, "ns"), ("param", (4,), _F8, "ns"), ("scale", ()
                ("part_rot", (4,), _F8, "cstart"), ("part_rad", (), _F8, "cstart"))
 #: the compound part pool, absent from files written before compounds existed
 _COMPOUND_NAMES = ("cstart", "part_kind", "part_row", "part_off", "part_rot", "part_rad")
+#: shape-table kinds a file may hold (spheres and planes have no row; custom SDFs are code)
+_STORABLE_KINDS = (Shape.BOX, Shape.POLYGON, Shape.POLYHEDRON, Shape.COMPOUND)
 
 
 def _trailing(key, dim):
@@ -94,7 +97,7 @@ def _write_bodies(group, bodies):
         group.create_dataset(name, data=getattr(bodies, name))
     t = bodies.table
     if t.n:
-        if np.any(t.kind == 5):
+        if np.any(t.kind == Shape.CUSTOM):
             raise ValueError("bodies with a user-defined shape (CustomShape) cannot be "
                              "written: their signed distance function is code, not data")
         g = group.create_group("shape_table")
@@ -131,14 +134,15 @@ def _read_table(path, group, n_bodies_shape):
             rows = int(start[-1])
         setattr(t, name, _checked(path, f"bodies/shape_table/{name}", group[name],
                                   (rows, *tail), dtype))
-    if np.any(((t.kind < 2) | (t.kind > 4)) & (t.kind != 6)):
+    if np.any(~np.isin(t.kind, _STORABLE_KINDS)):
         raise ValueError(f"{path}: bodies/shape_table/kind holds an unknown or "
                          f"non-storable shape kind")
     parts = np.diff(t.cstart)
-    row_kind = np.where(t.part_row >= 0, t.kind[np.clip(t.part_row, 0, max(ns - 1, 0))], 0)
-    if (np.any((parts > 0) != (t.kind == 6)) or np.any(t.part_row >= ns)
-            or np.any((t.part_row < 0) != (t.part_kind == 0))
-            or np.any(row_kind != t.part_kind) or np.any(t.part_kind == 6)
+    row_kind = np.where(t.part_row >= 0, t.kind[np.clip(t.part_row, 0, max(ns - 1, 0))],
+                        Shape.SPHERE)
+    if (np.any((parts > 0) != (t.kind == Shape.COMPOUND)) or np.any(t.part_row >= ns)
+            or np.any((t.part_row < 0) != (t.part_kind == Shape.SPHERE))
+            or np.any(row_kind != t.part_kind) or np.any(t.part_kind == Shape.COMPOUND)
             or not (np.all(np.isfinite(t.part_off)) and np.all(np.isfinite(t.part_rot))
                     and np.all(t.part_rad > 0.0))):
         raise ValueError(f"{path}: bodies/shape_table holds an inconsistent compound "

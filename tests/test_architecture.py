@@ -1,0 +1,225 @@
+"""The static import graph of ``dem`` and ``hmm``: no cycle, and the layering holds.
+
+Every ``import`` statement counts, at module level or inside a function (a lazy import
+is still a dependency), with relative imports resolved against the importing module.
+An edge goes to the module an import names: ``from .shapes.table import ShapeTable``
+is an edge to ``dem.shapes.table``, ``from . import rotation`` one to ``dem.rotation``.
+The asserted rules: no import cycle; ``dem`` never imports ``hmm``; ``mpi4py`` is
+imported in ``hmm/farm.py`` only, and there only inside functions (the suite runs
+serially through the same code); the kernels' status codes are defined in
+``dem/status.py`` only.
+"""
+
+import ast
+from collections import deque
+from pathlib import Path
+
+from dem.status import Status
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGES = ("dem", "hmm")
+
+
+def module_files(root=ROOT, packages=PACKAGES):
+    """``{dotted module name: path}`` of every Python file of ``packages`` under ``root``."""
+    out = {}
+    for package in packages:
+        for path in sorted((root / package).rglob("*.py")):
+            parts = path.relative_to(root).with_suffix("").parts
+            if parts[-1] == "__init__":
+                parts = parts[:-1]
+            out[".".join(parts)] = path
+    return out
+
+
+def imports_of(name, source, known, is_package=False):
+    """``(target, line, lazy)`` for every import in ``source``, the text of module ``name``.
+
+    ``known`` is the set of module names of the project: ``from a import b`` names the
+    module ``a.b`` when that is one of them, else the module ``a``. ``lazy`` is true for
+    an import inside a function body.
+    """
+    tree = ast.parse(source)
+    lazy_nodes = set()
+    for fn in ast.walk(tree):
+        if isinstance(fn, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+            lazy_nodes.update(id(node) for node in ast.walk(fn) if node is not fn)
+    found = []
+    for node in ast.walk(tree):
+        lazy = id(node) in lazy_nodes
+        if isinstance(node, ast.Import):
+            found += [(alias.name, node.lineno, lazy) for alias in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            if node.level:
+                base = name.split(".") if is_package else name.split(".")[:-1]
+                if node.level - 1 > len(base) - 1:
+                    raise ValueError(f"{name}:{node.lineno}: relative import beyond the top")
+                base = base[:len(base) - (node.level - 1)]
+                base = ".".join(base + ([node.module] if node.module else []))
+            else:
+                base = node.module
+            for alias in node.names:
+                sub = f"{base}.{alias.name}"
+                found.append((sub if sub in known else base, node.lineno, lazy))
+    return found
+
+
+def import_graph(files):
+    """``{module: {imported project module: first line}}`` over the modules of ``files``."""
+    known = set(files)
+    graph = {}
+    for name, path in files.items():
+        edges = {}
+        for target, line, _ in imports_of(name, path.read_text(), known,
+                                          path.name == "__init__.py"):
+            if target in known and target != name:
+                edges.setdefault(target, line)
+        graph[name] = edges
+    return graph
+
+
+def find_cycles(graph):
+    """One cycle ``[m0, m1, ..., m0]`` for each strongly connected component that has one.
+
+    Tarjan's algorithm (iterative) gives the components; within each, a breadth-first
+    search from its smallest member back to itself gives a shortest cycle through it.
+    """
+    index, low, on_stack, stack, components = {}, {}, set(), [], []
+    counter = 0
+    for root in sorted(graph):
+        if root in index:
+            continue
+        work = [(root, iter(sorted(graph[root])))]
+        index[root] = low[root] = counter
+        counter += 1
+        stack.append(root)
+        on_stack.add(root)
+        while work:
+            node, children = work[-1]
+            child = next(children, None)
+            if child is not None:
+                if child not in index:
+                    index[child] = low[child] = counter
+                    counter += 1
+                    stack.append(child)
+                    on_stack.add(child)
+                    work.append((child, iter(sorted(graph.get(child, ())))))
+                elif child in on_stack:
+                    low[node] = min(low[node], index[child])
+                continue
+            work.pop()
+            if work:
+                parent = work[-1][0]
+                low[parent] = min(low[parent], low[node])
+            if low[node] == index[node]:
+                component = set()
+                while True:
+                    member = stack.pop()
+                    on_stack.discard(member)
+                    component.add(member)
+                    if member == node:
+                        break
+                if len(component) > 1 or node in graph.get(node, ()):
+                    components.append(component)
+    cycles = []
+    for component in components:
+        start = min(component)
+        parent, queue, last = {start: None}, deque([start]), None
+        while last is None:
+            node = queue.popleft()
+            for child in sorted(graph[node]):
+                if child == start:
+                    last = node
+                    break
+                if child in component and child not in parent:
+                    parent[child] = node
+                    queue.append(child)
+        path = [start]
+        while last is not None:
+            path.append(last)
+            last = parent[last]
+        cycles.append(path[::-1])
+    return sorted(cycles)
+
+
+def describe(cycle, graph, files):
+    """``a (a.py:12) -> b (b.py:40) -> a``: each step with the line of its import."""
+    steps = [f"{a} ({files[a].relative_to(ROOT)}:{graph[a][b]})"
+             for a, b in zip(cycle, cycle[1:])]
+    return " -> ".join(steps + [cycle[-1]])
+
+
+FILES = module_files()
+GRAPH = import_graph(FILES)
+
+
+def test_the_graph_sees_every_kind_of_import():
+    known = {"p", "p.a", "p.b", "p.sub", "p.sub.c", "p.sub.d"}
+    source = ("import p.a\n"
+              "import numpy.linalg as la\n"
+              "from . import c\n"
+              "from . import thing\n"
+              "from ..b import x\n"
+              "from .. import a\n"
+              "def f():\n"
+              "    from p.sub.c import y\n")
+    found = imports_of("p.sub.d", source, known)
+    assert [(target, lazy) for target, _, lazy in found] == [
+        ("p.a", False), ("numpy.linalg", False), ("p.sub.c", False), ("p.sub", False),
+        ("p.b", False), ("p.a", False), ("p.sub.c", True)]
+    package = imports_of("p.sub", "from . import c\nfrom .d import z\n", known,
+                         is_package=True)
+    assert [target for target, _, _ in package] == ["p.sub.c", "p.sub.d"]
+    assert len(FILES) > 50, "the scan found too few modules"
+    assert "dem.shapes" in GRAPH["dem.state"] and "dem.state" in GRAPH["dem"]
+
+
+def test_cycle_finder_reports_a_cycle():
+    graph = {"a": {"b": 1}, "b": {"c": 2}, "c": {"a": 3, "d": 4}, "d": {}, "e": {"e": 5}}
+    assert find_cycles(graph) == [["a", "b", "c", "a"], ["e", "e"]]
+    assert find_cycles({"a": {"b": 1}, "b": {}, "c": {"a": 1, "b": 2}}) == []
+
+
+def test_no_import_cycle():
+    cycles = find_cycles(GRAPH)
+    assert not cycles, "import cycles:\n" + "\n".join(
+        describe(c, GRAPH, FILES) for c in cycles)
+
+
+def test_dem_never_imports_hmm():
+    bad = [f"{FILES[name].relative_to(ROOT)}:{line} imports {target}"
+           for name in FILES if name.split(".")[0] == "dem"
+           for target, line, _ in imports_of(name, FILES[name].read_text(), set(FILES),
+                                             FILES[name].name == "__init__.py")
+           if target.split(".")[0] == "hmm"]
+    assert not bad, "\n".join(bad)
+
+
+def test_mpi4py_only_in_the_farm_and_lazily():
+    where = [(name, line, lazy) for name in FILES
+             for target, line, lazy in imports_of(name, FILES[name].read_text(), set(FILES),
+                                                  FILES[name].name == "__init__.py")
+             if target.split(".")[0] == "mpi4py"]
+    assert where, "no mpi4py import found at all: the scan is broken"
+    elsewhere = [f"{FILES[n].relative_to(ROOT)}:{line}" for n, line, _ in where
+                 if n != "hmm.farm"]
+    assert not elsewhere, f"mpi4py imported outside hmm/farm.py: {elsewhere}"
+    eager = [line for _, line, lazy in where if not lazy]
+    assert not eager, f"hmm/farm.py imports mpi4py at module level, lines {eager}"
+
+
+def test_status_codes_are_defined_once():
+    """No module but ``dem.status`` binds a status name to a value of its own."""
+    names = {member.name for member in Status} | {"FAILED"}
+    found = []
+    for name, path in FILES.items():
+        if name == "dem.status":
+            continue
+        for node in ast.parse(path.read_text()).body:
+            targets = node.targets if isinstance(node, ast.Assign) else [
+                node.target] if isinstance(node, ast.AnnAssign) else []
+            for target in targets:
+                elts = target.elts if isinstance(target, ast.Tuple) else [target]
+                found += [f"{path.relative_to(ROOT)}:{node.lineno} {e.id}" for e in elts
+                          if isinstance(e, ast.Name) and e.id in names]
+    assert not found, "status codes defined outside dem/status.py: " + ", ".join(found)

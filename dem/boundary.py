@@ -5,11 +5,19 @@ vectors are the columns of the cell matrix ``H`` (d, d) [m]; the scene repeats w
 the lattice ``H n``, n integer. The cell deforms by a velocity gradient ``L``
 (d, d) [1/s], ``dH/dt = L H``, and every body follows the affine field ``L x`` plus
 its own *fluctuation*: with a cell, ``Bodies.vel`` holds the fluctuation velocity,
-so the kinetic energy and the kinetic stress are those of the fluctuations, and the
-relative velocity of a contact adds ``L l`` to the fluctuations' difference, ``l``
-the branch vector across the periodic image. One time step maps positions and the
-cell by the same ``I + dt L``, so a body that does not fluctuate keeps its
-fractional coordinates ``s = H^-1 (x - origin)`` exactly.
+so the kinetic energy and the kinetic stress are those of the fluctuations. One time
+step maps positions and the cell by the same ``M = I + dt L``, so a body that does not
+fluctuate keeps its fractional coordinates ``s = H^-1 (x - origin)`` exactly.
+
+``L = D + W`` may have a spin ``W`` (a finite-strain Gauss point hands its RVE the
+whole displacement gradient). The material then turns: each step turns every body's
+orientation, and every contact's tangential spring, by the rotation ``R`` of
+``M = R U`` (its polar factor), and ``Bodies.ang_vel`` holds the spin *fluctuation*
+about it. The relative velocity of a contact adds ``D l`` to the fluctuations'
+difference, ``l`` the branch vector across the periodic image: the spin moves both
+bodies of a pair, and their surfaces, together. A rigid rotation of the cell thus
+turns positions, orientations and contact forces alike, exactly, whatever the
+angle per step, and the Cauchy stress of the packing turns with it.
 
 Any basis of the lattice describes the same periodic scene. When simple shear has
 skewed the cell so that a perpendicular width falls below a set fraction of its

@@ -7,9 +7,11 @@ Gauss point needs:
 * **strain control** -- :meth:`RVE.apply_strain` imposes an increment ``deps`` (d, d)
   of the displacement gradient as a constant velocity gradient over ``n_s`` steps,
   ``n_s`` chosen so that no step strains the cell by more than ``max_step_strain``
-  (1e-5 by default, as YADE's FEMxDEM), with ``L = ((I + deps)^(1/n_s) - I) / dt``
-  so that the steps' map ``(I + dt L)^n_s`` is exactly ``I + deps``; then it holds
-  the cell and relaxes;
+  (1e-5 by default, as YADE's FEMxDEM; :func:`load_steps`: the stretch counts, a
+  rotation does not), with ``L = ((I + deps)^(1/n_s) - I) / dt`` so that the
+  steps' map ``(I + dt L)^n_s`` is exactly ``I + deps``; then it holds the cell and
+  relaxes. ``deps`` need not be symmetric: its spin turns the packing with the cell
+  (:mod:`dem.boundary`), and the stress with it;
 * **stress and mixed control** -- :meth:`RVE.load` drives the diagonal components
   named in ``mask`` to target stresses with a servo on the cell while the others
   follow a strain increment (a drained biaxial or triaxial test: axial strain,
@@ -498,7 +500,7 @@ class RVE:
     def _drive(self, deps, target, mask, progress, relax=True):
         sim, cell, d = self.sim, self.cell, self.dim
         dt = sim.dt
-        n_load = math.ceil(np.abs(deps).max() / self.max_step_strain) if deps.any() else 0
+        n_load = load_steps(deps, self.max_step_strain)
         l_load = np.zeros((d, d))
         if n_load:  # (I + dt L)^n_load = I + deps exactly: L from the matrix root
             root = fractional_matrix_power(np.eye(d) + deps, 1.0 / n_load)
@@ -632,6 +634,33 @@ class RVE:
         rve = cls.__new__(cls)
         rve._setup(sim, law, deformation=np.array(deformation, np.float64), **opts)
         return rve
+
+
+def load_steps(deps, max_step_strain):
+    """Steps that impose the increment ``deps`` (d, d) of the displacement gradient
+    with no step straining the cell by more than ``max_step_strain``: the largest
+    entry of the stretch ``U - I`` of ``I + deps = R U`` over it, at least one step
+    for any non-zero increment. A rotation strains nothing: the spin of a step is not
+    limited (the cell turns its contacts and bodies exactly, :mod:`dem.boundary`). A
+    symmetric increment is its own stretch.
+
+    Examples
+    --------
+    >>> load_steps(np.diag([1e-3, -5e-4]), 1e-5)
+    100
+    >>> c, s = np.cos(0.5), np.sin(0.5)
+    >>> load_steps(np.array([[c - 1.0, -s], [s, c - 1.0]]), 1e-5)  # a rigid turn
+    1
+    """
+    deps = np.asarray(deps, dtype=np.float64)
+    if not deps.any():
+        return 0
+    if np.array_equal(deps, deps.T):
+        stretch = deps
+    else:
+        w, sv, vt = np.linalg.svd(np.eye(deps.shape[0]) + deps)
+        stretch = (vt.T * sv) @ vt - np.eye(deps.shape[0])
+    return max(1, math.ceil(np.abs(stretch).max() / max_step_strain))
 
 
 def _expm_step(lgrad, dt, n):

@@ -53,15 +53,147 @@ def _apply_law(code, ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k,
 
 
 @kernel(inline=True)
+def add_strain_rate(dim, rate, lx, ly, lz, vx, vy, vz):
+    """``v + D l`` with ``D`` the symmetric part of ``rate``: the affine field's
+    velocity difference across a branch vector ``l`` felt by a contact. The spin
+    turns the pair as a whole, and the bodies with it (:func:`cell_spin`, which gives
+    the ``rate`` to use then), so it does not slide the contact. For a symmetric
+    ``rate`` (``L`` without spin) this is ``v + L l``, summed as it always was."""
+    d01 = 0.5 * (rate[0, 1] + rate[1, 0])
+    vx += rate[0, 0] * lx + d01 * ly
+    vy += d01 * lx + rate[1, 1] * ly
+    if dim == 3:
+        d02 = 0.5 * (rate[0, 2] + rate[2, 0])
+        d12 = 0.5 * (rate[1, 2] + rate[2, 1])
+        vx += d02 * lz
+        vy += d12 * lz
+        vz += d02 * lx + d12 * ly + rate[2, 2] * lz
+    return vx, vy, vz
+
+
+@kernel(inline=True)
+def cell_spin(dim, on, lgrad, dt, spin, quat, rate):
+    """The rotation of one step's cell map ``M = I + dt L`` when ``L`` has a spin.
+
+    In a deforming cell (``on``) whose velocity gradient is not symmetric: ``spin``
+    (d, d) gets the rotation ``R`` of ``M = R U`` (its polar factor: the material's
+    rotation over the step, exactly ``M`` for a rigid turn), ``quat`` (4,) its
+    quaternion (w, x, y, z) in 3D or its angle ``quat[0]`` in 2D, and ``rate`` (d, d)
+    the stretching the contacts feel, ``(V - I) / dt`` with ``V = M R^T`` the left
+    stretch (zero for a rigid turn of any angle); returns True. Otherwise returns
+    False and leaves the three alone. Bodies' angular velocities are then
+    fluctuations about this spin, as their velocities are about the affine field:
+    each step turns every orientation and every contact's tangential spring by ``R``
+    (:func:`turn_spring`, :func:`turn_orientation`).
+    """
+    if not on:
+        return False
+    turns = lgrad[0, 1] != lgrad[1, 0]
+    if dim == 3:
+        turns = turns or lgrad[0, 2] != lgrad[2, 0] or lgrad[1, 2] != lgrad[2, 1]
+    if not turns:
+        return False
+    m = np.eye(dim) + dt * lgrad
+    if dim == 2:
+        ang = math.atan2(m[1, 0] - m[0, 1], m[0, 0] + m[1, 1])
+        c, s = math.cos(ang), math.sin(ang)
+        spin[0, 0], spin[0, 1], spin[1, 0], spin[1, 1] = c, -s, s, c
+        quat[0] = ang
+    else:
+        r = m.copy()
+        for _ in range(30):  # Newton's iteration for the polar factor: R <- (R + R^-T)/2
+            nxt = 0.5 * (r + np.linalg.inv(r).T)
+            change = np.abs(nxt - r).max()
+            r = nxt
+            if change <= 1e-16:
+                break
+        spin[:, :] = r
+        _quaternion(r, quat)
+    v = np.zeros((dim, dim))  # V = M R^T
+    for a in range(dim):
+        for c in range(dim):
+            for e in range(dim):
+                v[a, c] += m[a, e] * spin[c, e]
+    for a in range(dim):
+        for c in range(dim):  # V is symmetric: keep it so to the bit
+            rate[a, c] = (0.5 * (v[a, c] + v[c, a]) - (1.0 if a == c else 0.0)) / dt
+    return True
+
+
+@kernel(inline=True)
+def _quaternion(r, q):
+    """The unit quaternion (w, x, y, z) of the rotation matrix ``r`` (Shepperd's
+    method: the largest of w, x, y, z first)."""
+    tr = r[0, 0] + r[1, 1] + r[2, 2]
+    if tr >= max(r[0, 0], r[1, 1], r[2, 2]):
+        w = 0.5 * math.sqrt(1.0 + tr)
+        q[0], q[1], q[2], q[3] = (w, (r[2, 1] - r[1, 2]) / (4.0 * w),
+                                  (r[0, 2] - r[2, 0]) / (4.0 * w),
+                                  (r[1, 0] - r[0, 1]) / (4.0 * w))
+    elif r[0, 0] >= r[1, 1] and r[0, 0] >= r[2, 2]:
+        x = 0.5 * math.sqrt(1.0 + r[0, 0] - r[1, 1] - r[2, 2])
+        q[0], q[1], q[2], q[3] = ((r[2, 1] - r[1, 2]) / (4.0 * x), x,
+                                  (r[0, 1] + r[1, 0]) / (4.0 * x),
+                                  (r[0, 2] + r[2, 0]) / (4.0 * x))
+    elif r[1, 1] >= r[2, 2]:
+        y = 0.5 * math.sqrt(1.0 - r[0, 0] + r[1, 1] - r[2, 2])
+        q[0], q[1], q[2], q[3] = ((r[0, 2] - r[2, 0]) / (4.0 * y),
+                                  (r[0, 1] + r[1, 0]) / (4.0 * y), y,
+                                  (r[1, 2] + r[2, 1]) / (4.0 * y))
+    else:
+        z = 0.5 * math.sqrt(1.0 - r[0, 0] - r[1, 1] + r[2, 2])
+        q[0], q[1], q[2], q[3] = ((r[1, 0] - r[0, 1]) / (4.0 * z),
+                                  (r[0, 2] + r[2, 0]) / (4.0 * z),
+                                  (r[1, 2] + r[2, 1]) / (4.0 * z), z)
+
+
+@kernel(inline=True)
+def turn_vector(dim, spin, rows, k):
+    """Turn the vector ``rows[k, :dim]`` by the step's spin (:func:`cell_spin`)."""
+    h0, h1 = rows[k, 0], rows[k, 1]
+    if dim == 2:
+        rows[k, 0] = spin[0, 0] * h0 + spin[0, 1] * h1
+        rows[k, 1] = spin[1, 0] * h0 + spin[1, 1] * h1
+        return
+    h2 = rows[k, 2]
+    for a in range(3):
+        rows[k, a] = spin[a, 0] * h0 + spin[a, 1] * h1 + spin[a, 2] * h2
+
+
+@kernel(inline=True)
+def turn_spring(dim, spin, hist, k):
+    """Turn contact k's tangential spring (history columns 0-2) by the step's spin."""
+    turn_vector(dim, spin, hist, k)
+
+
+@kernel(inline=True)
+def turn_orientation(dim, quat, rot, b):
+    """Turn body b's orientation by the step's spin ``quat`` (:func:`cell_spin`; 2D:
+    add the angle; 3D: ``q <- q_R q``)."""
+    if dim == 2:
+        rot[b, 0] += quat[0]
+        return
+    rw, rx, ry, rz = quat[0], quat[1], quat[2], quat[3]
+    qw, qx, qy, qz = rot[b, 0], rot[b, 1], rot[b, 2], rot[b, 3]
+    rot[b, 0] = rw * qw - rx * qx - ry * qy - rz * qz
+    rot[b, 1] = rw * qx + rx * qw + ry * qz - rz * qy
+    rot[b, 2] = rw * qy - rx * qz + ry * qw + rz * qx
+    rot[b, 3] = rw * qz + rx * qy - ry * qx + rz * qw
+
+
+@kernel(inline=True)
 def _sphere_pair(k, dim, code, periodic, deform, pos, vel, ang_vel, radius, inv_mass,
-                 mat_id, hmat, lgrad, pairs, img, touch, hist, params, dt, overlap_limit,
-                 status_out):
+                 mat_id, hmat, rate, turns, spin, pairs, img, touch, hist, params, dt,
+                 overlap_limit, status_out):
     """Contact k of the sphere-sphere list.
 
     Returns ``(touching, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz)``: the force on j
     (i gets the opposite) and the torques on i and j (2D: the z components only).
     In a deforming cell (``deform``) velocities are fluctuations and the relative
-    velocity gains ``L l``, ``l`` the branch vector. Resets the history of a contact that opened; flags an excessive overlap.
+    velocity gains ``D l``, ``l`` the branch vector, ``D`` the symmetric part of
+    ``rate`` (:func:`add_strain_rate`: ``L``, or with ``turns`` the stretching of
+    :func:`cell_spin`, the spring then first turning with the cell). Resets the
+    history of a contact that opened; flags an excessive overlap.
     """
     i = pairs[k, 0]
     j = pairs[k, 1]
@@ -112,12 +244,9 @@ def _sphere_pair(k, dim, code, periodic, deform, pos, vel, ang_vel, radius, inv_
         vy = vel[j, 1] - vel[i, 1] - (sz * nx - sx * nz)
         vz = vel[j, 2] - vel[i, 2] - (sx * ny - sy * nx)
     if deform:  # the affine field's velocity difference across the branch vector
-        vx += lgrad[0, 0] * dx + lgrad[0, 1] * dy
-        vy += lgrad[1, 0] * dx + lgrad[1, 1] * dy
-        if dim == 3:
-            vx += lgrad[0, 2] * dz
-            vy += lgrad[1, 2] * dz
-            vz += lgrad[2, 0] * dx + lgrad[2, 1] * dy + lgrad[2, 2] * dz
+        vx, vy, vz = add_strain_rate(dim, rate, dx, dy, dz, vx, vy, vz)
+        if turns:
+            turn_spring(dim, spin, hist, k)
     r_eff = ri * rj / (ri + rj)
     m_eff = 1.0 / (inv_mass[i] + inv_mass[j])
     fx, fy, fz = _apply_law(code, ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, params,
@@ -217,10 +346,11 @@ def moved2(dim, deform, pos, ref, b, fmap):
 
 @kernel(inline=True)
 def _drift_centre(b, dim, deform, lgrad, dt, half, pos, vel, force, torque, inv_mass,
-                  is_fixed):
+                  is_fixed, turns, spin):
     """The translational half kick and drift of body b (fixed bodies: drift at their
     velocity; its torque zeroed too), carried by the cell's affine field ``dt L x``
-    when ``deform``; zeroes its force."""
+    when ``deform``, its fluctuation velocity turned with the cell when ``turns``
+    (:func:`cell_spin`); zeroes its force."""
     ax, ay, az = _affine(dim, deform, lgrad, pos, b, dt)
     if is_fixed[b]:
         for a in range(dim):
@@ -231,6 +361,9 @@ def _drift_centre(b, dim, deform, lgrad, dt, half, pos, vel, force, torque, inv_
     else:
         for a in range(dim):
             vel[b, a] += half * force[b, a] * inv_mass[b]
+        if turns:
+            turn_vector(dim, spin, vel, b)
+        for a in range(dim):
             pos[b, a] += dt * vel[b, a]
             force[b, a] = 0.0
     if deform:
@@ -242,15 +375,16 @@ def _drift_centre(b, dim, deform, lgrad, dt, half, pos, vel, force, torque, inv_
 
 @kernel(inline=True)
 def _drift_body(b, dim, deform, dt, half, pos, vel, rot, ang_vel, force, torque,
-                inv_mass, inv_inertia, is_fixed, pos_inner, lgrad, fmap):
+                inv_mass, inv_inertia, is_fixed, pos_inner, lgrad, fmap, turns, spin, quat):
     """Half kick and drift of body b (fixed bodies: drift at their velocity), carried
-    by the cell's affine field when ``deform``.
+    by the cell's affine field when ``deform`` (and turned with the cell when
+    ``turns``: :func:`cell_spin`).
 
     Zeroes b's force and torque: the contact loops add into them. Returns the squared
     displacement [m^2] since the inner list was made (beyond the affine map ``fmap``).
     """
     _drift_centre(b, dim, deform, lgrad, dt, half, pos, vel, force, torque, inv_mass,
-                  is_fixed)
+                  is_fixed, turns, spin)
     s2 = moved2(dim, deform, pos, pos_inner, b, fmap)
     if is_fixed[b]:
         return s2
@@ -276,6 +410,10 @@ def _drift_body(b, dim, deform, dt, half, pos, vel, rot, ang_vel, force, torque,
         rot[b, 1] = rw * qx + hx * qw + hy * qz - hz * qy
         rot[b, 2] = rw * qy - hx * qz + hy * qw + hz * qx
         rot[b, 3] = rw * qz + hx * qy - hy * qx + hz * qw
+    if turns:  # the orientation, and a 3D spin fluctuation, turn with the cell
+        turn_orientation(dim, quat, rot, b)
+        if dim == 3:
+            turn_vector(3, spin, ang_vel, b)
     return s2
 
 
@@ -552,6 +690,11 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
         # list's making affinely to now
         fmap = np.eye(DIM)
         rmax = _cell_start(DEFORM and is_cell, radius, hmat, cellref[1], fmap)
+        # a cell whose velocity gradient has a spin turns springs and orientations;
+        # its contacts then feel the stretching rate ``rate``, not L's symmetric part
+        spin, quat, rate = np.eye(DIM), np.zeros(4), lgrad.copy()
+        turns = cell_spin(DIM, DEFORM and is_cell and not prime, lgrad, dt, spin, quat,
+                          rate)
         for it in range(n_iter):
             if not prime and not (resume and it == 0):
                 if DEFORM and is_cell:  # the cell follows the affine field: H += dt L H
@@ -563,7 +706,7 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
                 for b in numba.prange(n):
                     s2 = _drift_body(b, DIM, DEFORM, dt, half, pos, vel, rot, ang_vel,
                                      force, torque, inv_mass, inv_inertia, is_fixed,
-                                     pos_inner, lgrad, fmap)
+                                     pos_inner, lgrad, fmap, turns, spin, quat)
                     if not math.isfinite(s2):
                         n_bad += 1
                     maxd2 = max(maxd2, s2)
@@ -613,8 +756,8 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
                     k = inner[q]
                     (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
                         k, DIM, PP, PERIODIC, DEFORM, pos, vel, ang_vel, radius, inv_mass,
-                        mat_id, hmat, lgrad, pairs, img, touch, hist, params_pp, hdt, overlap_limit,
-                        status_out)
+                        mat_id, hmat, rate, turns, spin, pairs, img, touch, hist,
+                        params_pp, hdt, overlap_limit, status_out)
                     if on:
                         _scatter_pair(k, DIM, pairs[k, 0], pairs[k, 1], fx, fy, fz, tix,
                                       tiy, tiz, tjx, tjy, tjz, fpair, force, torque)
@@ -654,8 +797,8 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
                         k = inner[q]
                         (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
                             k, DIM, PP, PERIODIC, DEFORM, pos, vel, ang_vel, radius,
-                            inv_mass, mat_id, hmat, lgrad, pairs, img, touch, hist, params_pp, hdt,
-                            overlap_limit, status_out)
+                            inv_mass, mat_id, hmat, rate, turns, spin, pairs, img, touch,
+                            hist, params_pp, hdt, overlap_limit, status_out)
                         if on:
                             _scatter_pair(k, DIM, pairs[k, 0], pairs[k, 1], fx, fy, fz,
                                           tix, tiy, tiz, tjx, tjy, tjz, fpair, force,
@@ -666,8 +809,8 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
                     k = inner[q]
                     (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
                         k, DIM, PP, PERIODIC, DEFORM, pos, vel, ang_vel, radius, inv_mass,
-                        mat_id, hmat, lgrad, pairs, img, touch, hist, params_pp, hdt, overlap_limit,
-                        status_out)
+                        mat_id, hmat, rate, turns, spin, pairs, img, touch, hist,
+                        params_pp, hdt, overlap_limit, status_out)
                     si = slot[k, 0]
                     sj = slot[k, 1]
                     if not on:

@@ -53,7 +53,8 @@ from .detection.admm import admm_contact, make_admm
 from .detection.analytic import sphere_box, sphere_polytope
 from .detection.polytope import polytope_contact, polytope_plane
 from .loops import (_apply_law, _cell_map, _cell_start, _deform_cell, _drift_centre,
-                    _strain_norm, body_force, moved2)
+                    _strain_norm, add_strain_rate, body_force, cell_spin, moved2,
+                    turn_orientation, turn_spring)
 
 #: detection methods
 M_SPHERES, M_SPHERE_BOX, M_SPHERE_POLY, M_POLY, M_ADMM = 0, 1, 2, 3, 4
@@ -152,23 +153,28 @@ def _kick_rotation(dim, b, half, rot, ang_vel, torque, inv_inertia):
 
 @kernel(inline=True)
 def _drift_rigid(b, dim, deform, lgrad, dt, half, pos, vel, rot, ang_vel, force, torque,
-                 inv_mass, inv_inertia, is_fixed):
+                 inv_mass, inv_inertia, is_fixed, turns, spin, quat):
     """Half kick and drift of body b, carried by the cell's affine field ``dt L x``
-    when ``deform`` (its orientation is not: the field moves centres only); zeroes its
-    force and torque (the caller checks the displacement against the neighbour
-    list)."""
+    when ``deform``, its orientation turned with the cell's spin when ``turns``
+    (:func:`dem.contact.loops.cell_spin`: angular velocities are fluctuations about
+    it); zeroes its force and torque (the caller checks the displacement against the
+    neighbour list)."""
     _drift_centre(b, dim, deform, lgrad, dt, half, pos, vel, force, torque, inv_mass,
-                  is_fixed)
+                  is_fixed, turns, spin)
     if is_fixed[b]:
         return
     if dim == 2:
         ang_vel[b, 0] += half * torque[b, 0] * inv_inertia[b, 0]
         rot[b, 0] += dt * ang_vel[b, 0]
         torque[b, 0] = 0.0
+        if turns:
+            turn_orientation(2, quat, rot, b)
         return
     lx, ly, lz = _kick_rotation(3, b, half, rot, ang_vel, torque, inv_inertia)
     ix, iy, iz = inv_inertia[b, 0], inv_inertia[b, 1], inv_inertia[b, 2]
     lx, ly, lz = _free_rotor(rot, b, lx, ly, lz, ix, iy, iz, dt)
+    if turns:  # the body-frame momentum stays; the frame turns with the cell
+        turn_orientation(3, quat, rot, b)
     ang_vel[b, 0], ang_vel[b, 1], ang_vel[b, 2] = to_world(3, rot, b, lx * ix, ly * iy,
                                                            lz * iz)
     torque[b, 0] = 0.0
@@ -256,6 +262,11 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
         # affinely to now
         fmap = np.eye(DIM)
         rmax = _cell_start(DEFORM and is_cell, radius, hmat, cellref[0], fmap)
+        # a cell whose velocity gradient has a spin turns springs and orientations;
+        # its contacts then feel the stretching rate ``rate``, not L's symmetric part
+        spin, quat, rate = np.eye(DIM), np.zeros(4), lgrad.copy()
+        turns = cell_spin(DIM, DEFORM and is_cell and not prime, lgrad, dt, spin, quat,
+                          rate)
         for it in range(n_iter):
             if not prime and not (resume and it == 0):
                 if DEFORM and is_cell:  # the cell follows the affine field: H += dt L H
@@ -263,7 +274,8 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                     _cell_map(hmat, cellref[0], fmap)
                 for b in numba.prange(n):
                     _drift_rigid(b, DIM, DEFORM, lgrad, dt, half, pos, vel, rot, ang_vel,
-                                 force, torque, inv_mass, inv_inertia, is_fixed)
+                                 force, torque, inv_mass, inv_inertia, is_fixed, turns,
+                                 spin, quat)
                 maxd2 = 0.0
                 n_bad = 0
                 for b in numba.prange(n):
@@ -319,10 +331,10 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                     else:
                         ov, nx, ny, nz, cx, cy, cz = pair_exact(
                             DIM, meth, pa, pb, sx, sy, sz, epos, erot, erad, eshape, geo)
-                    pair_force(DIM, PP, DEFORM, lgrad, k, i, j, a, b, swap, sx, sy, sz,
-                               ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel, erad[pa],
-                               erad[pb], inv_mass, mat_id, params_pp, hist, touch, fpair,
-                               tpair, pgeom, hdt, overlap_limit, status_out)
+                    pair_force(DIM, PP, DEFORM, rate, turns, spin, k, i, j, a, b, swap,
+                               sx, sy, sz, ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel,
+                               erad[pa], erad[pb], inv_mass, mat_id, params_pp, hist,
+                               touch, fpair, tpair, pgeom, hdt, overlap_limit, status_out)
             # ---- 4. wall buckets: body i against wall w (home body: i)
             work = 0.0
             for bi in range(wbmethod.shape[0]):
@@ -474,14 +486,16 @@ def wall_exact(dim, meth, i, w, pos, rot, radius, normal, shape, geo):
 
 
 @kernel
-def pair_force(dim, code, deform, lgrad, k, i, j, a, b, swap, sx, sy, sz, ov, nx, ny, nz,
-               cx, cy, cz, pos, vel, ang_vel, ra, rb, inv_mass, mat_id, params, hist,
-               touch, fpair, tpair, pgeom, dt, overlap_limit, status_out):
+def pair_force(dim, code, deform, rate, turns, spin, k, i, j, a, b, swap, sx, sy, sz, ov,
+               nx, ny, nz, cx, cy, cz, pos, vel, ang_vel, ra, rb, inv_mass, mat_id, params,
+               hist, touch, fpair, tpair, pgeom, dt, overlap_limit, status_out):
     """Law and rows of pair k (bodies i < j; A = a, B = b + shift; ``ra``, ``rb`` the
     radii of the touching parts): force on j in
     ``fpair[k]``, torques on i and j in ``tpair[k]``, geometry in ``pgeom[k]``. In a
     deforming cell (``deform``) the bodies' velocities are fluctuations about the
-    affine field ``L x``, whose difference across the branch vector is added."""
+    affine field ``L x``, whose stretching ``D l`` across the branch vector is added
+    (``rate``: ``L``, or the stretching of :func:`dem.contact.loops.cell_spin` when
+    ``turns``; the spin turns the pair as a whole, and its spring with it)."""
     nr = tpair.shape[1] // 2
     if ov <= 0.0:
         if touch[k]:  # the contact opened: its history ends
@@ -514,13 +528,10 @@ def pair_force(dim, code, deform, lgrad, k, i, j, a, b, swap, sx, sy, sz, ov, nx
     if deform:
         lx = pos[b, 0] + sx - pos[a, 0]
         ly = pos[b, 1] + sy - pos[a, 1]
-        rvx += lgrad[0, 0] * lx + lgrad[0, 1] * ly
-        rvy += lgrad[1, 0] * lx + lgrad[1, 1] * ly
-        if dim == 3:
-            lz = pos[b, 2] + sz - pos[a, 2]
-            rvx += lgrad[0, 2] * lz
-            rvy += lgrad[1, 2] * lz
-            rvz += lgrad[2, 0] * lx + lgrad[2, 1] * ly + lgrad[2, 2] * lz
+        lz = pos[b, 2] + sz - pos[a, 2] if dim == 3 else 0.0
+        rvx, rvy, rvz = add_strain_rate(dim, rate, lx, ly, lz, rvx, rvy, rvz)
+        if turns:
+            turn_spring(dim, spin, hist, k)
     fx, fy, fz = _apply_law(code, ov, nx, ny, nz, rvx, rvy, rvz, r_eff, m_eff, params,
                             mat_id[a], mat_id[b], hist, k, dt)
     sgn = -1.0 if swap else 1.0  # rows are in (i, j) orientation

@@ -130,11 +130,11 @@ def solve(prob):
     from hmm.problem import build_farm, build_loads, build_macro
 
     macro = build_macro(prob)
-    supports, f_const, f_ramp = build_loads(prob, macro)
+    supports, f_const, f_ramp, loads = build_loads(prob, macro)
     farm = CountingFarm(build_farm(prob, macro))
     st = prob["solver"]
     solver = Solver(macro, farm, supports, f_const, f_ramp,
-                    SolverSettings.from_section(st))
+                    SolverSettings.from_section(st), loads)
     farm.reset()
     top = macro.dofs("top", 1)
     n = prob["load"]["steps"]

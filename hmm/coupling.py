@@ -1,14 +1,18 @@
 """Load stepping and Newton-Raphson over a farm of micro models, with step cutting.
 
 One load step from the committed state (displacement ``u``, load factor ``t``)
-to ``t + dt``, in this order:
+to ``t + dt``, in this order (``macro.kinematics`` decides what "strain", "internal
+force" and "stiffness" mean: :mod:`hmm.macro`):
 
 1. **Predictor.** The prescribed displacements move by their share of the step;
    the free ones come from the committed tangents (``K_c du = f_ext(t + dt) -
    f_int(sigma_c)``), so the first trial already sees a sensible strain field.
-2. **Iterations.** ``farm.trial(eps(du))`` gives stresses and tangents from the
-   committed micro states; the residual ``r = f_int - f_ext`` on the free degrees
-   of freedom and the correction ``K dd = -r`` follow; ``du += dd``.
+2. **Iterations.** ``farm.trial(G(du))`` gives stresses and tangents from the
+   committed micro states (``G``: the strain increment, or under finite kinematics
+   the displacement-gradient increment on the converged configuration, after a
+   check that no element inverts); the residual ``r = f_int - f_ext`` on the free
+   degrees of freedom (both on the trial configuration under finite kinematics) and
+   the correction ``K dd = -r`` follow; ``du += dd``.
 3. **Convergence** needs both ``|r_free| <= tol_residual * |f_int|`` and
    ``|dd| <= tol_displacement * |u + du|`` (the total displacement: a micro model
    that relaxes to a tolerance answers with noise that a cut step must not have to
@@ -19,8 +23,9 @@ to ``t + dt``, in this order:
    step), or a residual already within ``tol_residual``; then ``farm.commit()`` and
    the step is done. A step that has not converged in ``max_iterations``, whose
    residual (or, without the residual check, correction) grows three times in a
-   row, or in which a micro model's physics fails (an RVE that cannot relax), is
-   **cut**: ``farm.rollback()`` and the step is retried at half its size, down to
+   row, in which an element would invert (``det F <= 0``, or below
+   :data:`MIN_JACOBIAN`, at a Gauss point), or in
+   which a micro model's physics fails (an RVE that cannot relax), is **cut**: ``farm.rollback()`` and the step is retried at half its size, down to
    ``min_step`` times the nominal step, after which :class:`SolverError` stops the
    run; the solver keeps the last converged state (:func:`hmm.run.run_problem`
    writes its frame and marks ``fields.h5`` as stopped). Any other exception of a
@@ -39,6 +44,11 @@ from .farm import MicroFailure
 log = logging.getLogger(__name__)
 
 
+#: a Gauss point whose volume ratio det F falls to this is inverted (or flattened to
+#: round-off): the step is cut
+MIN_JACOBIAN = 1e-8
+
+
 class SolverError(RuntimeError):
     """The load step could not be completed even at the smallest step size."""
 
@@ -52,11 +62,15 @@ class SolverSettings:
     max_iterations: int = 10
     min_step: float = 1.0 / 64.0
     check_residual: bool = True
+    #: Aitken relaxation of successive corrections: steadies Newton with a DEM
+    #: micro model's approximate tangent; off, an exact tangent converges
+    #: quadratically
+    aitken: bool = True
 
     @classmethod
     def from_section(cls, section):
         """The settings of a validated ``[solver]`` section (a dict)."""
-        return cls(**{f.name: section[f.name] for f in fields(cls)})
+        return cls(**{f.name: section[f.name] for f in fields(cls) if f.name in section})
 
     def __post_init__(self):
         for name in ("tol_residual", "tol_displacement", "min_step"):
@@ -70,12 +84,22 @@ class SolverSettings:
 @dataclass
 class Supports:
     """Prescribed displacements: ``dofs`` and their values at the end of the schedule
-    (load factor 1), ramped linearly with the load factor."""
+    (load factor 1), ramped linearly with the load factor, or given along the
+    schedule by ``path(t) -> values`` (e.g. a rigid rotation)."""
 
     dofs: np.ndarray
     values: np.ndarray
     #: boundaries whose reaction forces are reported
     boundaries: tuple = ()
+    #: optional ``path(t)``: the prescribed values at load factor ``t``
+    path: object = None
+
+    def increment(self, t, h):
+        """The change of the prescribed values from load factor ``t`` to ``t + h``."""
+        if self.path is None:
+            return h * self.values
+        return (np.asarray(self.path(t + h), dtype=np.float64)
+                - np.asarray(self.path(t), dtype=np.float64))
 
 
 class Solver:
@@ -92,19 +116,33 @@ class Solver:
     f_ramp : (n_dofs,) array
         External forces at load factor 1 on top of ``f_const``, ramped linearly.
     settings : SolverSettings
+    loads : sequence, optional
+        Loads that depend on the configuration (finite kinematics: follower
+        pressures, loads per unit current area or volume, :mod:`hmm.loads`).
     """
 
-    def __init__(self, macro, farm, supports, f_const=None, f_ramp=None, settings=None):
+    def __init__(self, macro, farm, supports, f_const=None, f_ramp=None, settings=None,
+                 loads=()):
         self.macro = macro
         self.farm = farm
         self.supports = supports
         n = macro.n_dofs
         self.f_const = np.zeros(n) if f_const is None else np.asarray(f_const, float)
         self.f_ramp = np.zeros(n) if f_ramp is None else np.asarray(f_ramp, float)
+        self.loads = tuple(loads)
+        if self.loads and not macro.finite:
+            raise ValueError("configuration-dependent loads need finite kinematics")
         self.settings = settings or SolverSettings()
         if farm.n != macro.n_gp:
             raise ValueError(f"the farm has {farm.n} micro models for {macro.n_gp} "
                              f"Gauss points")
+        models = getattr(farm, "models", ())  # this rank's (an MPI farm: a dict)
+        models = models.values() if isinstance(models, dict) else models
+        small_only = sorted({type(m).__name__ for m in models
+                             if not getattr(m, "objective", False)})
+        if macro.finite and small_only:
+            raise ValueError(f"finite kinematics needs objective micro models; "
+                             f"{', '.join(small_only)} is a small-strain law")
         self.u = np.zeros(n)
         self.t = 0.0
         self.sigma = farm.stress()
@@ -116,15 +154,32 @@ class Solver:
         self._u_floor = 1e-12 * float(np.ptp(macro.mesh.p, axis=1).max())
         self.iterations = []  # Newton iterations of each converged step
         self.cuts = 0
+        #: what the micro models got in the last converged step (n_gp, d, d): the
+        #: strain increment, or the displacement-gradient increment (finite)
+        self.increment = np.zeros((farm.n, macro.dim, macro.dim))
 
-    def f_ext(self, t):
-        return self.f_const + t * self.f_ramp
+    def f_ext(self, t, u=None):
+        """External nodal forces [N] at load factor ``t`` (on the configuration of
+        the displacement ``u`` for configuration-dependent loads)."""
+        f = self.f_const + t * self.f_ramp
+        for load in self.loads:
+            f = f + load.force(self.macro, self.u if u is None else u, t)
+        return f
+
+    def stiffness(self, tangent, sigma, u, t):
+        """The Newton matrix at the configuration of ``u``: internal minus the load
+        stiffness of configuration-dependent loads."""
+        k = self.macro.stiffness(tangent, u, sigma)
+        for load in self.loads:
+            k = k - load.stiffness(self.macro, u, t)
+        return k
 
     def reactions(self):
         """Force [N] the supports exert on the body, per supported boundary, at the
         committed state (``{boundary: (d,)}``): the internal force that external
-        loads do not balance."""
-        r = self.macro.internal_force(self.sigma) - self.f_ext(self.t)
+        loads do not balance (on the current configuration under finite
+        kinematics)."""
+        r = self.macro.internal_force(self.sigma, self.u) - self.f_ext(self.t)
         return {name: np.array([r[self.macro.dofs(name, c)].sum()
                                 for c in range(self.macro.dim)])
                 for name in self.supports.boundaries}
@@ -157,35 +212,55 @@ class Solver:
             dt = min(2.0 * dt, nominal)  # grow back after a cut
         return its
 
+    def _inverted(self, du):
+        """A message naming the first element that ``u + du`` would invert, or None
+        (finite kinematics only: a small-strain mesh never moves)."""
+        macro = self.macro
+        if not macro.finite:
+            return None
+        jac = np.linalg.det(macro.deformation(self.u + du))
+        bad = np.flatnonzero(~(jac > MIN_JACOBIAN))
+        if bad.size == 0:
+            return None
+        g = int(bad[0])
+        return (f"element {g // macro.n_qp} inverts (det F = {jac[g]:.3g} at its Gauss "
+                f"point {g}; {bad.size} points in all)")
+
     def _attempt(self, h, nominal, on_iteration):
         macro, farm, st = self.macro, self.farm, self.settings
         sup = self.supports
-        f_ext = self.f_ext(self.t + h)
+        t1 = self.t + h
         du = np.zeros(macro.n_dofs)
-        du[sup.dofs] = h * sup.values
-        # predictor from the committed tangents
-        k_c = macro.stiffness(self.tangent)
-        r_c = macro.internal_force(self.sigma) - f_ext
+        du[sup.dofs] = sup.increment(self.t, h)
+        # predictor from the committed tangents, on the committed configuration
+        k_c = self.stiffness(self.tangent, self.sigma, self.u, t1)
+        r_c = macro.internal_force(self.sigma, self.u) - self.f_ext(t1)
         du = solve(*condense(k_c, -r_c, x=du, D=sup.dofs))
         growth = 0
         last = math.inf
         prev, omega = None, 1.0
         for it in range(1, st.max_iterations + 1):
+            inverted = self._inverted(du)
+            if inverted is not None:
+                raise _NotConverged(inverted)
+            u1 = self.u + du
+            grad = macro.increment_gradient(self.u, du)
             try:
-                sig, c = farm.trial(macro.strain(du))
+                sig, c = farm.trial(grad)
             except MicroFailure as err:
                 if not err.recoverable:  # a bug or bad input: cutting cannot help
                     farm.rollback()
                     raise SolverError(f"load step at t = {self.t:.6g} stopped: {err}") \
                         from err
                 raise _NotConverged(str(err)) from err
-            f_int = macro.internal_force(sig)
+            f_int = macro.internal_force(sig, u1)
+            f_ext = self.f_ext(t1, u1)
             r = f_int - f_ext
             rn = float(np.linalg.norm(r[self.free]))
             ref = max(float(np.linalg.norm(f_int)), float(np.linalg.norm(f_ext)), 1e-300)
             if not math.isfinite(rn):
                 raise _NotConverged("non-finite residual")
-            dd = solve(*condense(macro.stiffness(c), -r, D=sup.dofs))
+            dd = solve(*condense(self.stiffness(c, sig, u1, t1), -r, D=sup.dofs))
             dn = float(np.linalg.norm(dd))
             # the correction against the total displacement; without the residual
             # check against the step's own, FEMxDEM's (|du| of a late step is far
@@ -207,8 +282,9 @@ class Solver:
             # models' noise over a tiny displacement, which no iteration removes
             if (small_r and small_d) if st.check_residual else (small_d or small_r):
                 self.u += du
-                self.t += h
+                self.t = t1
                 self.sigma, self.tangent = sig, c
+                self.increment = grad
                 farm.commit()
                 return it
             watched = rn if st.check_residual else dn
@@ -218,7 +294,7 @@ class Solver:
                 raise _NotConverged(f"{what} grew three times (|r|/|f| = {rn / ref:.3g}, "
                                     f"|du|/|u| = {dn / un:.3g})")
             last = watched
-            if prev is not None:  # Aitken relaxation of the corrections
+            if st.aitken and prev is not None:  # Aitken relaxation of the corrections
                 diff = dd - prev
                 den = float(diff @ diff)
                 if den > 0.0:

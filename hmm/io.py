@@ -2,18 +2,27 @@
 
 ``fields.h5``::
 
-    /mesh/points (n_vertices, 3) [m], /mesh/cells (n_elems, k) int64
-    /gauss/points (n_gp, d) [m], /gauss/weights (n_gp,) [m^d]
+    /            attrs: kinematics ("small" or "finite")
+    /mesh/points (n_vertices, 3) [m], /mesh/cells (n_elems, k) int64 (initial mesh)
+    /gauss/points (n_gp, d) [m], /gauss/weights (n_gp,) [m^d] (initial)
     /steps/NNNNN/  attrs: step, load_factor, iterations
         displacement (n_vertices, 3) [m]
+        points (n_vertices, 3) [m] -- finite kinematics: the deformed mesh
         element data, (n_elems,) each -- Gauss-point means:
-            stress_xx ... [Pa], strain_xx ... [-], deviatoric_strain [-],
-            mean_stress p [Pa] (compression positive), stress_ratio q/p [-],
-            void_ratio, coordination, dem_fraction (share of points that ran DEM)
-        gauss/stress (n_gp, d, d), gauss/strain (n_gp, d, d), gauss/ran_dem (n_gp,)
-    /curve/  load_factor, displacement, force (per supported boundary, per step)
+            stress_xx ... [Pa] (Cauchy), strain_xx ... [-] (small: sym grad u;
+            finite: logarithmic, ln V), strain_increment_xx ... [-] (the last
+            step's sym G), deviatoric_strain [-], mean_stress p [Pa] (compression
+            positive), stress_ratio q/p [-], void_ratio, coordination, dem_fraction
+            (share of points that ran DEM)
+        gauss/stress (n_gp, d, d), gauss/strain (n_gp, d, d),
+        gauss/increment (n_gp, d, d) (what the micro models got: G, not
+        symmetrised, under finite kinematics), gauss/ran_dem (n_gp,),
+        gauss/points (n_gp, d) [m] -- finite kinematics: current positions
+    /curve/  load_factor, displacement, force (per supported boundary, per step;
+             forces on the current boundary)
 
-``fields.xdmf`` references it (a temporal collection, one grid per written step);
+``fields.xdmf`` references it (a temporal collection, one grid per written step; under
+finite kinematics each grid is the deformed mesh, so ParaView shows the real shape);
 ``load_displacement.png`` and ``deviatoric_strain.png`` show the run; written at
 :meth:`Output.close`.
 """
@@ -115,6 +124,7 @@ class Output:
         self.f.create_dataset("mesh/cells", data=cells)
         self.f.create_dataset("gauss/points", data=macro.gauss_points())
         self.f.create_dataset("gauss/weights", data=macro.weights())
+        self.f.attrs["kinematics"] = macro.kinematics
 
     @staticmethod
     def curve_names(boundaries):
@@ -212,8 +222,14 @@ class Output:
         disp = np.zeros((macro.mesh.p.shape[1], 3))
         disp[:, :d] = macro.nodal_displacement(u)
         g.create_dataset("displacement", data=disp)
+        if macro.finite:
+            pts = np.zeros_like(disp)
+            pts[:, :d] = macro.current_points(u)
+            g.create_dataset("points", data=pts)
         sig = solver.sigma
-        eps = macro.strain(u)
+        eps = macro.total_strain(u)
+        inc = solver.increment
+        inc_sym = 0.5 * (inc + np.swapaxes(inc, 1, 2))
         ne, nq = macro.n_elems, macro.n_qp
 
         def emean(a):
@@ -222,6 +238,8 @@ class Output:
         for a, b in _components(d):
             g.create_dataset(f"stress_{_AXES[a]}{_AXES[b]}", data=emean(sig[:, a, b]))
             g.create_dataset(f"strain_{_AXES[a]}{_AXES[b]}", data=emean(eps[:, a, b]))
+            g.create_dataset(f"strain_increment_{_AXES[a]}{_AXES[b]}",
+                             data=emean(inc_sym[:, a, b]))
         dev = eps - np.trace(eps, axis1=1, axis2=2)[:, None, None] / d * np.eye(d)
         g.create_dataset("deviatoric_strain",
                          data=emean(np.sqrt(2.0 / 3.0 * np.einsum("nij,nij->n", dev, dev))))
@@ -233,7 +251,10 @@ class Output:
         g.create_dataset("dem_fraction", data=emean(np.asarray(measures["ran_dem"], float)))
         g.create_dataset("gauss/stress", data=sig)
         g.create_dataset("gauss/strain", data=eps)
+        g.create_dataset("gauss/increment", data=inc)
         g.create_dataset("gauss/ran_dem", data=np.asarray(measures["ran_dem"], bool))
+        if macro.finite:
+            g.create_dataset("gauss/points", data=macro.gauss_points(u))
         self.f.flush()
         self.frames.append((name, solver.t))
 
@@ -281,13 +302,13 @@ class Output:
                 "NumberOfElements": str(cells[1])})
             item(topo, "mesh/cells", (cells[1], cells[0]), "Int")
             geo = ET.SubElement(grid, "Geometry", {"GeometryType": "XYZ"})
-            item(geo, "mesh/points", (n_pts, 3))
+            item(geo, f"{name}/points" if macro.finite else "mesh/points", (n_pts, 3))
             att = ET.SubElement(grid, "Attribute", {"Name": "displacement",
                                                      "AttributeType": "Vector",
                                                      "Center": "Node"})
             item(att, f"{name}/displacement", (n_pts, 3))
             for k in keys:
-                if k == "displacement":
+                if k in ("displacement", "points"):
                     continue
                 att = ET.SubElement(grid, "Attribute", {"Name": k, "AttributeType":
                                                          "Scalar", "Center": "Cell"})
@@ -331,7 +352,7 @@ class Output:
         mesh = self.macro.mesh
         scale = 1.0
         span = np.ptp(mesh.p, axis=1).max()
-        if np.abs(disp).max() > 0.0:
+        if np.abs(disp).max() > 0.0 and not self.macro.finite:  # finite: the true shape
             scale = min(10.0, 0.1 * span / np.abs(disp).max())
         xy = mesh.p.T + scale * disp
         polys = xy[mesh.t.T]
@@ -348,7 +369,8 @@ class Output:
             ax.set_aspect("equal")
             ax.set_title(title, fontsize=10)
             fig.colorbar(pc, ax=ax, shrink=0.8)
-        fig.suptitle(f"final step, displacements x {scale:.3g}", fontsize=10)
+        fig.suptitle("final step, deformed mesh" if self.macro.finite else
+                     f"final step, displacements x {scale:.3g}", fontsize=10)
         fig.tight_layout()
         save_figure(fig, self.dir / "deviatoric_strain.png")
         plt.close(fig)

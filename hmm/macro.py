@@ -1,16 +1,31 @@
-"""The macro problem on scikit-fem: small-strain, quasi-static, Gauss-point data.
+"""The macro problem on scikit-fem: quasi-static, Gauss-point data, small or finite.
 
 :class:`Macro` holds a mesh and a vector basis and turns Gauss-point arrays into the
-finite element quantities of a Newton iteration:
+finite element quantities of a Newton iteration. Its ``kinematics`` is a choice:
 
-* the strain increment at every Gauss point, ``sym grad du`` -> (n_gp, d, d);
-* the internal force ``r_a = int sigma : eps(v_a)`` from stresses (n_gp, d, d);
-* the stiffness ``K_ab = int eps(v_a) : C : eps(v_b)`` from tangents (n_gp, d,d,d,d);
-* external forces: pressure and traction on named boundaries, body force.
+``"small"``
+    The mesh never moves. The micro models get the strain increment ``sym grad du``;
+    the internal force is ``r_a = int sigma : eps(v_a) dV`` and the stiffness
+    ``K_ab = int eps(v_a) : C : eps(v_b) dV``.
+``"finite"``
+    Updated Lagrangian. Every quantity lives on the current configuration
+    ``x = X + u``: the micro models get the displacement-gradient increment on the
+    configuration of the last converged step, ``G = grad_{x_n} du`` (not
+    symmetrised: it carries the spin), and return the Cauchy stress in the current
+    frame; the internal force is ``r_a = int sigma : grad_x v_a dv`` and the Newton
+    matrix adds to the material part the geometric (initial-stress) one
+    (:func:`hmm.tensors.spatial_tangent`). Integrals over the current configuration
+    are evaluated on the initial mesh through ``grad_x = grad_X F^-1`` and
+    ``dv = det F dV``, ``F = I + grad_X u``: the same integrals on the isoparametric
+    image of the mesh, curved edges of quadratic elements included, with no drift
+    from moving the mesh step after step. Pressures follow the deformed boundary
+    (with their load stiffness) unless they are dead loads; tractions and body
+    forces are per unit reference area and volume unless stated per current one.
 
 Gauss points are numbered ``e * n_qp + q`` (element ``e``, quadrature point ``q``),
-the order of a farm. 2D is plane strain. Weak forms follow scikit-fem: decorated pure
-functions, with Gauss-point data reaching them by keyword (``w.sigma``, ``w.C``).
+the order of a farm; they are material points, carried by the motion. 2D is plane
+strain. Weak forms follow scikit-fem: decorated pure functions, with Gauss-point data
+reaching them by keyword (``w.sigma``, ``w.C``).
 """
 
 import numpy as np
@@ -33,7 +48,9 @@ from skfem import (
     MeshTri,
     asm,
 )
-from skfem.helpers import ddot, dot, sym_grad
+from skfem.helpers import ddot, dot, mul, sym_grad, trace
+
+from .tensors import log_strain, spatial_tangent
 
 #: element name -> (mesh class, element class, quadrature order): 2x2 Gauss points
 #: on bilinear quadrilaterals, 3x3 on biquadratic (9-node) ones, 2x2 on 8-node
@@ -70,6 +87,64 @@ def _vector_load(v, w):
     return dot(w.t, v)
 
 
+# --------------------------------------------------------------------------- finite
+# w.Finv (d, d, ...) and w.J (...) describe the current configuration at the
+# quadrature points of the initial mesh: grad_x v = grad_X v F^-1, dv = J dV.
+@LinearForm
+def _internal_finite(v, w):
+    return ddot(w.sigma, mul(v.grad, w.Finv)) * w.J
+
+
+@BilinearForm
+def _stiffness_finite(u, v, w):
+    gu = mul(u.grad, w.Finv)
+    return ddot(mul(v.grad, w.Finv), np.einsum("ijkl...,kl...->ij...", w.A, gu)) * w.J
+
+
+@LinearForm
+def _follower_pressure(v, w):
+    # n da = J F^-T N dA (Nanson): w.m = J F^-T N
+    return -w.p * dot(w.m, v)
+
+
+@BilinearForm
+def _follower_pressure_stiffness(u, v, w):
+    # d(n da) = (tr g I - g^T) n da, g = grad_x du
+    g = mul(u.grad, w.Finv)
+    gtm = np.einsum("ji...,j...->i...", g, w.m)
+    return -w.p * (trace(g) * dot(w.m, v) - dot(gtm, v))
+
+
+@BilinearForm
+def _current_area_stiffness(u, v, w):
+    # d|n da| = (tr g - n.g n) da for a traction per unit current area
+    g = mul(u.grad, w.Finv)
+    da = np.sqrt(dot(w.m, w.m))
+    gm = np.einsum("ij...,j...->i...", g, w.m)
+    change = trace(g) * da - dot(w.m, gm) / da
+    return dot(w.t, v) * change
+
+
+@LinearForm
+def _current_volume_load(v, w):
+    return dot(w.t, v) * w.J
+
+
+@BilinearForm
+def _current_volume_stiffness(u, v, w):
+    return dot(w.t, v) * trace(mul(u.grad, w.Finv)) * w.J
+
+
+#: the kinematics a Macro offers
+KINEMATICS = ("small", "finite")
+
+
+def _inverse_and_det(f):
+    """F^-1 and det F of (d, d, ...) arrays."""
+    m = np.moveaxis(f, (0, 1), (-2, -1))
+    return np.moveaxis(np.linalg.inv(m), (-2, -1), (0, 1)), np.linalg.det(m)
+
+
 def structured_mesh(element, size, cells):
     """A rectangle (2D) or box (3D) ``[0, size]`` split into ``cells`` per axis, with
     the boundaries ``left``/``right`` (x), ``bottom``/``top`` (y) and
@@ -88,11 +163,18 @@ class Macro:
         With named boundaries (``mesh.boundaries``) for loads and supports.
     element : str
         One of :data:`ELEMENTS`.
+    kinematics : str
+        ``"small"`` or ``"finite"`` (see the module docstring).
     """
 
-    def __init__(self, mesh, element="quad1"):
+    def __init__(self, mesh, element="quad1", kinematics="small"):
         if element not in ELEMENTS:
             raise ValueError(f"element must be one of {', '.join(ELEMENTS)}, got {element!r}")
+        if kinematics not in KINEMATICS:
+            raise ValueError(f"kinematics must be \"small\" or \"finite\", got "
+                             f"{kinematics!r}")
+        self.kinematics = kinematics
+        self.finite = kinematics == "finite"
         mesh_cls, elem_cls, order = ELEMENTS[element]
         if not isinstance(mesh, mesh_cls):
             raise TypeError(f"element {element!r} needs a {mesh_cls.__name__}, "
@@ -119,26 +201,85 @@ class Macro:
         a = np.asarray(a).reshape((self.n_elems, self.n_qp) + np.shape(a)[1:])
         return np.moveaxis(a, (0, 1), (-2, -1))
 
-    def gauss_points(self):
-        """Coordinates of the Gauss points (n_gp, d) [m]."""
-        return self.to_gp(self.basis.mapping.F(self.basis.X))
+    def gauss_points(self, u=None):
+        """Coordinates of the Gauss points (n_gp, d) [m]: initial, or with ``u`` (and
+        finite kinematics) current."""
+        x = self.to_gp(self.basis.mapping.F(self.basis.X))
+        if u is not None and self.finite:
+            x = x + self.to_gp(self.basis.interpolate(u))
+        return x
 
-    def weights(self):
-        """Integration weight (volume) of each Gauss point (n_gp,) [m^d]."""
-        return self.to_gp(self.basis.dx)
+    def weights(self, u=None):
+        """Integration weight (volume) of each Gauss point (n_gp,) [m^d]: initial, or
+        with ``u`` (and finite kinematics) current."""
+        w = self.to_gp(self.basis.dx)
+        if u is not None and self.finite:
+            w = w * np.linalg.det(self.deformation(u))
+        return w
 
-    # ------------------------------------------------------------------ forms
+    # ------------------------------------------------------------------ kinematics
     def strain(self, u):
         """Small strain ``sym grad u`` at the Gauss points (n_gp, d, d)."""
         return self.to_gp(sym_grad(self.basis.interpolate(u)))
 
-    def internal_force(self, sigma):
-        """``int sigma : eps(v)`` for stresses (n_gp, d, d) [N]."""
-        return asm(_internal, self.basis, sigma=self.from_gp(sigma))
+    def total_strain(self, u):
+        """The strain of the displacement ``u`` at the Gauss points (n_gp, d, d):
+        ``sym grad u`` (small), or Hencky's logarithmic strain ``ln V`` (finite)."""
+        if not self.finite:
+            return self.strain(u)
+        return log_strain(self.deformation(u))
 
-    def stiffness(self, tangent):
-        """``int eps(u) : C : eps(v)`` for tangents (n_gp, d, d, d, d) (sparse)."""
-        return asm(_stiffness, self.basis, C=self.from_gp(tangent))
+    def current_points(self, u):
+        """Vertex coordinates of the deformed mesh (n_vertices, d) [m]: initial ones
+        under small kinematics."""
+        x = self.mesh.p.T.copy()
+        if self.finite:
+            x += self.nodal_displacement(u)
+        return x
+
+    def deformation(self, u):
+        """The deformation gradient ``F = I + grad_X u`` at the Gauss points
+        (n_gp, d, d)."""
+        return self.to_gp(self._deformation(u))
+
+    def _deformation(self, u):
+        return self.basis.interpolate(u).grad + np.eye(self.dim)[:, :, None, None]
+
+    def increment_gradient(self, u, du):
+        """What the micro models get for the increment ``du`` from the converged
+        displacement ``u`` (n_gp, d, d): ``sym grad du`` (small), or
+        ``grad_{x_n} du = grad_X du F(u)^-1`` (finite, not symmetrised)."""
+        if not self.finite:
+            return self.strain(du)
+        finv, _ = _inverse_and_det(self._deformation(u))
+        return self.to_gp(mul(self.basis.interpolate(du).grad, finv))
+
+    def _current(self, u):
+        """``(F^-1, det F)`` at the quadrature points, as (d, d, ne, nq), (ne, nq)."""
+        return _inverse_and_det(self._deformation(u))
+
+    # ------------------------------------------------------------------ forms
+    def internal_force(self, sigma, u=None):
+        """``int sigma : eps(v) dV`` (small), or ``int sigma : grad_x v dv`` on the
+        configuration of ``u`` (finite), for Cauchy stresses (n_gp, d, d) [N]."""
+        if u is None or not self.finite:
+            return asm(_internal, self.basis, sigma=self.from_gp(sigma))
+        finv, jac = self._current(u)
+        return asm(_internal_finite, self.basis, sigma=self.from_gp(sigma), Finv=finv,
+                   J=jac)
+
+    def stiffness(self, tangent, u=None, sigma=None):
+        """``int eps(v) : C : eps(du) dV`` for tangents (n_gp, d, d, d, d) (small), or
+        the updated-Lagrangian Newton matrix on the configuration of ``u``, material
+        and geometric parts, which needs the stresses ``sigma`` too (finite).
+        Sparse."""
+        if u is None or not self.finite:
+            return asm(_stiffness, self.basis, C=self.from_gp(tangent))
+        if sigma is None:
+            raise ValueError("the finite-strain stiffness needs the stresses")
+        finv, jac = self._current(u)
+        a = spatial_tangent(sigma, tangent)
+        return asm(_stiffness_finite, self.basis, A=self.from_gp(a), Finv=finv, J=jac)
 
     def _facets(self, boundary):
         if boundary not in self.mesh.boundaries:
@@ -146,20 +287,63 @@ class Macro:
         return FacetBasis(self.mesh, self.elem, facets=self.mesh.boundaries[boundary],
                           intorder=self.order)
 
-    def pressure_force(self, boundary, pressure):
-        """Nodal forces [N] of a pressure [Pa] (compressive, positive) on a boundary."""
-        return asm(_pressure, self._facets(boundary), p=float(pressure))
+    def _facet_current(self, fb, u):
+        """``(F^-1, J F^-T N)`` at the quadrature points of facets ``fb``."""
+        finv, jac = _inverse_and_det(fb.interpolate(u).grad
+                                     + np.eye(self.dim)[:, :, None, None])
+        m = jac * np.einsum("ki...,k...->i...", finv, np.asarray(fb.normals))
+        return finv, m
 
-    def traction_force(self, boundary, traction):
-        """Nodal forces [N] of a traction vector (d,) [Pa] on a boundary."""
+    def pressure_force(self, boundary, pressure, u=None):
+        """Nodal forces [N] of a pressure [Pa] (compressive, positive) on a boundary:
+        on the initial boundary, or (``u`` given, finite kinematics) on the deformed
+        one, normal to it (a follower load)."""
+        fb = self._facets(boundary)
+        if u is None or not self.finite:
+            return asm(_pressure, fb, p=float(pressure))
+        _, m = self._facet_current(fb, u)
+        return asm(_follower_pressure, fb, p=float(pressure), m=m)
+
+    def pressure_stiffness(self, boundary, pressure, u):
+        """``d f / d u`` of :meth:`pressure_force` on the deformed boundary (sparse):
+        the load stiffness of a follower pressure."""
+        fb = self._facets(boundary)
+        finv, m = self._facet_current(fb, u)
+        return asm(_follower_pressure_stiffness, fb, p=float(pressure), m=m, Finv=finv)
+
+    def traction_force(self, boundary, traction, u=None):
+        """Nodal forces [N] of a traction vector (d,) [Pa] on a boundary: per unit
+        initial area, or (``u`` given, finite kinematics) per unit current area."""
         fb = self._facets(boundary)
         t = np.asarray(traction, dtype=np.float64)[:, None, None] * np.ones(fb.dx.shape)
-        return asm(_vector_load, fb, t=t)
+        if u is None or not self.finite:
+            return asm(_vector_load, fb, t=t)
+        _, m = self._facet_current(fb, u)
+        return asm(_vector_load, fb, t=t * np.sqrt(dot(m, m)))
 
-    def body_force(self, density_g):
-        """Nodal forces [N] of a body force density (d,) [N/m^3]."""
+    def traction_stiffness(self, boundary, traction, u):
+        """``d f / d u`` of a traction per unit current area (sparse)."""
+        fb = self._facets(boundary)
+        finv, m = self._facet_current(fb, u)
+        t = np.asarray(traction, dtype=np.float64)[:, None, None] * np.ones(fb.dx.shape)
+        return asm(_current_area_stiffness, fb, t=t, m=m, Finv=finv)
+
+    def body_force(self, density_g, u=None):
+        """Nodal forces [N] of a body force density (d,) [N/m^3]: per unit initial
+        volume, or (``u`` given, finite kinematics) per unit current volume."""
         b = np.asarray(density_g, dtype=np.float64)[:, None, None]
-        return asm(_vector_load, self.basis, t=b * np.ones(self.basis.dx.shape))
+        t = b * np.ones(self.basis.dx.shape)
+        if u is None or not self.finite:
+            return asm(_vector_load, self.basis, t=t)
+        _, jac = self._current(u)
+        return asm(_current_volume_load, self.basis, t=t, J=jac)
+
+    def body_force_stiffness(self, density_g, u):
+        """``d f / d u`` of a body force per unit current volume (sparse)."""
+        b = np.asarray(density_g, dtype=np.float64)[:, None, None]
+        finv, jac = self._current(u)
+        return asm(_current_volume_stiffness, self.basis,
+                   t=b * np.ones(self.basis.dx.shape), Finv=finv, J=jac)
 
     def dofs(self, boundary, component):
         """Degrees of freedom of displacement ``component`` (0..d-1) on a boundary."""

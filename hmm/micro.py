@@ -3,10 +3,16 @@
 Every model follows one protocol, the contract of the macro solver with its Gauss
 points (YADE's FEMxDEM pattern):
 
-``trial(deps) -> (sigma, C)``
+``trial(G) -> (sigma, C)``
     The Cauchy stress (d, d) [Pa] and the tangent ``C_ijkl = d sigma_ij / d eps_kl``
-    (d, d, d, d) [Pa] after the strain increment ``deps`` (d, d), always measured
-    from the last *committed* state: a Newton iteration may call it many times.
+    (d, d, d, d) [Pa] after the displacement-gradient increment ``G`` (d, d), always
+    measured from the last *committed* state: a Newton iteration may call it many
+    times. ``G = grad_{x_n} du`` is taken on the configuration of the last converged
+    step, so ``I + G`` maps that configuration to the trial one; under the macro
+    solver's small kinematics it is the symmetric strain increment ``sym grad du``.
+    Stress and tangent are in the current frame: ``C`` is the response to a
+    symmetric strain increment of the trial configuration; an *objective* model
+    (``objective = True``) turns its stress with the material's spin on top of it.
 ``commit()``
     The last trial becomes the committed state (the load step converged).
 ``rollback()``
@@ -15,14 +21,20 @@ points (YADE's FEMxDEM pattern):
     A dict of floats describing the committed state (``void_ratio``,
     ``coordination``, ``ran_dem``: 1.0 where the DEM ran), written with the fields.
 
-Stress is positive in tension; strains are small-strain increments of the
-displacement gradient (symmetric from the macro solver). 2D models are plane strain.
+Only objective models run under finite kinematics: the DEM RVE (its periodic cell
+follows the whole velocity gradient, spin included), :class:`Adaptive` built with
+``finite=True``, :class:`Hypoelastic` (Jaumann rate) and :class:`NeoHookean`.
+:class:`LinearElastic` and :class:`Hyperbolic` are small-strain laws.
+
+Stress is positive in tension. 2D models are plane strain.
 """
 
 import math
 import time
 
 import numpy as np
+
+from .tensors import polar, rotate4, rotation_power
 
 
 def isotropic_tangent(dim, bulk, shear):
@@ -52,6 +64,8 @@ class MicroModel:
 
     dim = 2
     ran_dem = False
+    #: the stress turns with the material (the model may run under finite kinematics)
+    objective = False
 
     def trial(self, deps):
         raise NotImplementedError
@@ -192,6 +206,149 @@ class Hyperbolic(MicroModel):
         return self.response(self.strain)[0]
 
 
+def _increment(g, dim):
+    """The increment ``I + G`` as an array, refused if it inverts the material."""
+    f = np.eye(dim) + np.asarray(g, dtype=np.float64)
+    if f.shape != (dim, dim) or not np.all(np.isfinite(f)):
+        raise ValueError(f"the increment must be a finite ({dim}, {dim}) array")
+    det = float(np.linalg.det(f))
+    if not det > 0.0:
+        raise ValueError(f"the increment inverts the material (det(I + G) = {det:.4g})")
+    return f
+
+
+class Hypoelastic(MicroModel):
+    """Isotropic hypoelasticity with the Jaumann rate: ``sigma' = C : d``, with
+    ``sigma'`` the co-rotational rate ``dsigma/dt - w sigma + sigma w``.
+
+    An increment ``G`` is integrated in the frame of its middle (Hughes and Winget's
+    midpoint rates, ``d dt + w dt = G (I + G/2)^-1``, with the rotation
+    ``R = (I - w dt/2)^-1 (I + w dt/2)`` split in two halves ``R_h``):
+    ``sigma_n+1 = R_h (R_h sigma_n R_h^T + C : d dt) R_h^T``. A rigid rotation turns
+    the stress exactly; with a constant velocity gradient the error falls with the
+    square of the step (simple shear: ``sigma_xy = G sin(gamma)``,
+    ``sigma_xx = -sigma_yy = G (1 - cos(gamma))``).
+
+    Parameters
+    ----------
+    young, poisson : float
+        E [Pa] and nu [-] of the elastic moduli ``C``.
+    dim : 2 or 3
+    stress0 : float or (d, d), optional
+        Initial stress [Pa].
+
+    Examples
+    --------
+    >>> m = Hypoelastic(1e6, 0.25, stress0=np.diag([-1e3, 0.0]))
+    >>> c, s = np.cos(np.pi / 2), np.sin(np.pi / 2)
+    >>> sig, _ = m.trial(np.array([[c, -s], [s, c]]) - np.eye(2))  # a quarter turn
+    >>> np.round(sig, 9).tolist()
+    [[0.0, 0.0], [0.0, -1000.0]]
+    """
+
+    objective = True
+
+    def __init__(self, young, poisson, dim=2, stress0=0.0):
+        lam, g = lame(young, poisson)
+        self.dim = int(dim)
+        self.tangent = isotropic_tangent(self.dim, lam + 2.0 * g / self.dim, g)
+        s0 = np.asarray(stress0, dtype=np.float64)
+        self.stress = s0 * np.eye(self.dim) if s0.ndim == 0 else s0.copy()
+        self._trial = self.stress.copy()
+
+    def trial(self, deps):
+        eye = np.eye(self.dim)
+        g = _increment(deps, self.dim) - eye
+        rate = np.linalg.solve((eye + 0.5 * g).T, g.T).T  # (d + w) dt at mid-step
+        d = 0.5 * (rate + rate.T)
+        w = 0.5 * (rate - rate.T)
+        r = np.linalg.solve(eye - 0.5 * w, eye + 0.5 * w)
+        half = rotation_power(r, 0.5)
+        rest = r @ half.T
+        mid = half @ self.stress @ half.T + np.einsum("ijkl,kl->ij", self.tangent, d)
+        self._trial = rest @ mid @ rest.T
+        return self._trial.copy(), self.tangent
+
+    def commit(self):
+        self.stress = self._trial.copy()
+
+    def rollback(self):
+        self._trial = self.stress.copy()
+
+    def export(self):
+        return {"stress": self.stress.copy()}
+
+    def load(self, state):
+        self.stress = np.array(state["stress"], dtype=np.float64)
+        self._trial = self.stress.copy()
+
+
+class NeoHookean(MicroModel):
+    """Compressible neo-Hookean hyperelasticity with its exact tangent.
+
+    ``sigma = (mu (b - I) + lambda ln(J) I) / J``, ``b = F F^T``, ``J = det F``
+    (plane strain in 2D: ``F_zz = 1``), with Lame's ``lambda`` and ``mu`` from the
+    small-strain E and nu. The tangent is exact: for ``g = eps + w``,
+    ``d sigma = C : eps + w sigma - sigma w`` with
+    ``C : eps = -sigma tr(eps) + (mu (eps b + b eps) + lambda tr(eps) I) / J``.
+
+    Parameters
+    ----------
+    young, poisson : float
+        E [Pa] and nu [-] at small strain.
+    dim : 2 or 3
+
+    Examples
+    --------
+    >>> m = NeoHookean(3e6, 0.25, dim=3)
+    >>> sig, _ = m.trial(np.diag([1.0, 0.0, 0.0]))  # stretch 2 with no lateral strain
+    >>> round(float(sig[0, 0]))  # (mu (4 - 1) + lambda ln 2) / 2 [Pa]
+    2215888
+    """
+
+    objective = True
+
+    def __init__(self, young, poisson, dim=2):
+        self.lam, self.mu = lame(young, poisson)
+        self.dim = int(dim)
+        self.f = np.eye(self.dim)
+        self._trial_f = self.f.copy()
+
+    def response(self, f):
+        """Cauchy stress and tangent ``C`` at the deformation gradient ``f``."""
+        d = self.dim
+        e = np.eye(d)
+        jac = float(np.linalg.det(f))
+        b = f @ f.T
+        sig = (self.mu * (b - e) + self.lam * math.log(jac) * e) / jac
+        c = (-np.einsum("ij,kl->ijkl", sig, e)
+             + (0.5 * self.mu * (np.einsum("ik,lj->ijkl", e, b) + np.einsum("il,kj->ijkl", e, b)
+                                 + np.einsum("ik,jl->ijkl", b, e) + np.einsum("il,jk->ijkl", b, e))
+                + self.lam * np.einsum("ij,kl->ijkl", e, e)) / jac)
+        return sig, c
+
+    def trial(self, deps):
+        self._trial_f = _increment(deps, self.dim) @ self.f
+        return self.response(self._trial_f)
+
+    def commit(self):
+        self.f = self._trial_f.copy()
+
+    def rollback(self):
+        self._trial_f = self.f.copy()
+
+    def export(self):
+        return {"deformation": self.f.copy()}
+
+    def load(self, state):
+        self.f = np.array(state["deformation"], dtype=np.float64)
+        self._trial_f = self.f.copy()
+
+    @property
+    def stress(self):
+        return self.response(self.f)[0]
+
+
 #: why the perturbation tangent and unrelaxed calls do not go together
 PERTURBATION_NEEDS_RELAX = (
     "the perturbation tangent relaxes its probes, so it needs relaxed RVE calls: from "
@@ -211,6 +368,7 @@ class DEMMicroModel(MicroModel):
     """
 
     ran_dem = True
+    objective = True  # the periodic cell follows the whole velocity gradient
 
     def __init__(self, rve, tangent="contact", probe=1e-5, relax=True):
         if tangent not in ("contact", "perturbation"):
@@ -302,18 +460,28 @@ class Adaptive(MicroModel):
     RVE's own contact tangent, ``sigma = sigma_c + C_e : deps``, at the cost of a
     matrix product. The first trial outside that range hands the accumulated strain
     to the RVE; once such a trial is committed the point runs the DEM from then on.
+
+    With ``finite=True`` (finite kinematics) the increments accumulate as the map
+    ``F`` the RVE owes, ``F = R U``; the thresholds apply to the rotation-free part
+    ``U - I``, the elastic answer turns with the material,
+    ``sigma = R (sigma_c + C_e : (U - I)) R^T`` with the tangent ``C_e`` turned by
+    ``R`` too, and the first DEM call gets ``F - I``.
     """
 
-    def __init__(self, dem_model, strain_threshold=1e-4, ratio_threshold=0.3):
+    def __init__(self, dem_model, strain_threshold=1e-4, ratio_threshold=0.3,
+                 finite=False):
         if not (strain_threshold > 0.0 and ratio_threshold > 0.0):
             raise ValueError("strain_threshold and ratio_threshold must be positive")
+        self.finite = bool(finite)
+        self.objective = self.finite
         self.dem = dem_model
         self.dim = dem_model.dim
         self.strain_threshold = float(strain_threshold)
         self.ratio_threshold = float(ratio_threshold)
         self.c_elastic = dem_model.elastic_tangent()
         self.active = False  # the DEM runs from now on (committed)
-        self.pending = np.zeros((self.dim, self.dim))  # elastic strain the RVE owes
+        # the elastic strain the RVE owes (finite: the increment map it owes)
+        self.pending = np.eye(self.dim) if self.finite else np.zeros((self.dim, self.dim))
         self.stress = dem_model.stress.copy()
         self._trial_stress = self.stress
         self._trial_active = False
@@ -326,6 +494,8 @@ class Adaptive(MicroModel):
         return self.active
 
     def trial(self, deps):
+        if self.finite:
+            return self._trial_finite(deps)
         if not self.active:
             total = self.pending + deps
             eps = 0.5 * (deps + deps.T)
@@ -344,11 +514,34 @@ class Adaptive(MicroModel):
         self.cost, self.steps = self.dem.cost, self.dem.steps
         return sig, c
 
+    def _trial_finite(self, deps):
+        if not self.active:
+            owed = _increment(deps, self.dim) @ self.pending
+            r, u = polar(owed)
+            stretch = u - np.eye(self.dim)
+            sig = r @ (self.dem.stress + np.einsum("ijkl,kl->ij", self.c_elastic,
+                                                   stretch)) @ r.T
+            if (np.linalg.norm(stretch) < self.strain_threshold
+                    and stress_ratio(sig) < self.ratio_threshold):
+                self._trial_active = False
+                self._trial_stress = sig
+                self._trial_deps = owed
+                self.cost, self.steps = 0.0, 0
+                return sig, rotate4(self.c_elastic, r)
+            deps = owed - np.eye(self.dim)
+        self._trial_active = True
+        sig, c = self.dem.trial(deps)
+        self._trial_stress = sig
+        self.cost, self.steps = self.dem.cost, self.dem.steps
+        return sig, c
+
     def commit(self):
         if self._trial_active:
             self.dem.commit()
             self.active = True
-            self.pending[:] = 0.0
+            self.pending[:] = np.eye(self.dim) if self.finite else 0.0
+        elif self.finite:  # the RVE has not moved; it owes the committed map
+            self.pending = self._trial_deps.copy()
         else:  # the RVE has not moved; it owes the committed elastic strain
             self.pending += self._trial_deps
         self.stress = self._trial_stress

@@ -29,19 +29,26 @@ Layout (SI units; ``d`` is ``[mesh] dim``)::
     value = 1e5                    # [Pa]
     ramp = false                   # false: present from the start (balances the RVEs'
                                    # initial stress); true: grows with the load factor
+    follower = true                # finite kinematics: normal to the deformed
+                                   # boundary (false: a dead load on the initial one)
 
     [[traction]]                   # traction vector, ramped
     boundary = "top"
     value = [0.0, -1e4]            # [Pa]
+    per = "reference"              # finite kinematics: per unit initial area, or
+                                   # "current" area
 
     [body_force]
     value = [0.0, 0.0]             # [N/m^3], ramped
+    per = "reference"              # per unit initial volume (gravity: rho_0 g), or
+                                   # "current" volume
 
     [load]
     steps = 10                     # load steps (each may be cut and retried)
 
     [micro]
-    model = "dem"                  # dem | adaptive | linear_elastic | hyperbolic
+    model = "dem"                  # dem | adaptive | linear_elastic | hyperbolic |
+                                   # hypoelastic | neo_hookean
     ... (see MICRO keys below)
 
     [[imperfection]]               # a weak spot (optional, any number; dem/adaptive)
@@ -50,6 +57,9 @@ Layout (SI units; ``d`` is ``[mesh] dim``)::
     consolidation_friction = 0.3   # friction (looser), and/or with contact friction mu
 
     [solver]
+    kinematics = "finite"          # "small" (fixed mesh) or "finite" (updated
+                                   # Lagrangian); default finite, small for the
+                                   # small-strain laws linear_elastic and hyperbolic
     tol_residual = 1e-3
     tol_displacement = 1e-3
     max_iterations = 10
@@ -80,6 +90,13 @@ ELEMENTS_2D = ("quad1", "quad2", "quad8", "tri1", "tri2")
 ELEMENTS_3D = ("hex1", "tet1")
 #: most elements of a structured mesh ([mesh] size and cells); each has Gauss points
 MAX_ELEMENTS = 10**6
+#: micro models of [micro] model; the analytic ones take young and poisson
+MICRO_MODELS = ("dem", "adaptive", "linear_elastic", "hyperbolic", "hypoelastic",
+                "neo_hookean")
+ANALYTIC = ("linear_elastic", "hyperbolic", "hypoelastic", "neo_hookean")
+#: the small-strain laws (not objective): small kinematics only
+SMALL_ONLY = ("linear_elastic", "hyperbolic")
+KINEMATICS = ("small", "finite")
 
 SCHEMA = {
     "mesh": Section(doc="The macro domain and its finite elements.", required=True, keys={
@@ -117,30 +134,42 @@ SCHEMA = {
         "value": Key("float", "Pa", default=REQUIRED, doc="Pressure."),
         "ramp": Key("bool", default=False,
                     doc="Grow with the load factor (else present from the start)."),
+        "follower": Key("bool", default=True,
+                        doc="Under finite kinematics, act normal to the deformed "
+                            "boundary, on its current area (false: a dead load on "
+                            "the initial boundary)."),
     }),
     "traction": Section(doc="Traction vector on a boundary, ramped.", array=True, keys={
         "boundary": Key("str", default=REQUIRED, doc="Named boundary of the mesh."),
         "value": Key("vector", "Pa", default=REQUIRED, doc="Traction at load factor 1."),
+        "per": Key("str", default="reference", choices=("reference", "current"),
+                   doc="Under finite kinematics, per unit initial (reference) or "
+                       "current area."),
     }),
     "body_force": Section(doc="Body force density, ramped.", keys={
         "value": Key("vector", "N/m^3", default=0.0, doc="Force per unit volume."),
+        "per": Key("str", default="reference", choices=("reference", "current"),
+                   doc="Under finite kinematics, per unit initial (reference) volume "
+                       "(gravity: rho_0 g) or current volume."),
     }),
     "load": Section(doc="The load schedule.", keys={
         "steps": Key("int", default=10, range=Range(1.0), doc="Number of load steps."),
     }),
     "micro": Section(doc="The micro model at every Gauss point.", required=True,
                      variant="model", keys={
-        "model": Key("str", default=REQUIRED,
-                     choices=("dem", "adaptive", "linear_elastic", "hyperbolic"),
+        "model": Key("str", default=REQUIRED, choices=MICRO_MODELS,
                      doc="dem: an RVE per point; adaptive: DEM only where needed; "
-                         "linear_elastic / hyperbolic: analytic laws."),
+                         "linear_elastic / hyperbolic: small-strain analytic laws; "
+                         "hypoelastic (Jaumann rate) / neo_hookean: objective "
+                         "analytic laws."),
         "young": Key("float", "Pa", default=REQUIRED, range=POSITIVE,
-                     only=("linear_elastic", "hyperbolic"), doc="Young's modulus."),
+                     only=ANALYTIC, doc="Young's modulus (small strain)."),
         "poisson": Key("float", default=REQUIRED, range=Range(-1.0, 0.5, False, False),
-                       only=("linear_elastic", "hyperbolic"), doc="Poisson's ratio."),
+                       only=ANALYTIC, doc="Poisson's ratio (small strain)."),
         "gamma_ref": Key("float", default=REQUIRED, range=POSITIVE, only=("hyperbolic",),
                          doc="Reference shear strain of the hyperbolic law."),
-        "stress0": Key("float", "Pa", default=0.0, only=("linear_elastic", "hyperbolic"),
+        "stress0": Key("float", "Pa", default=0.0,
+                       only=("linear_elastic", "hyperbolic", "hypoelastic"),
                        doc="Initial isotropic stress (tension positive)."),
         "packing": Key("path", only=("dem", "adaptive"),
                        doc="A packing saved by `hmm rve` or RVE.save (else generated)."),
@@ -207,7 +236,14 @@ SCHEMA = {
                   doc="Contact friction in the spot; default as [micro]."),
         "packing": Key("path", doc="A packing file for the spot (else generated)."),
     }),
-    "solver": Section(doc="Newton iterations and step cutting.", keys={
+    "solver": Section(doc="Kinematics, Newton iterations and step cutting.", keys={
+        "kinematics": Key("str", choices=KINEMATICS,
+                          doc="small: a fixed mesh and the symmetric strain "
+                              "increment; finite: updated Lagrangian, the mesh moves "
+                              "and the RVEs get the whole displacement gradient "
+                              "(default: finite for dem, adaptive, hypoelastic and "
+                              "neo_hookean; small for linear_elastic and "
+                              "hyperbolic, which are small-strain laws)."),
         "tol_residual": Key("float", default=1e-3, range=POSITIVE,
                             doc="Free residual over internal force norm."),
         "tol_displacement": Key("float", default=1e-3, range=POSITIVE,
@@ -216,6 +252,10 @@ SCHEMA = {
                               doc="Newton iterations before a step is cut."),
         "min_step": Key("float", default=1.0 / 64.0, range=Range(0.0, 1.0, False, True),
                         doc="Smallest step, as a fraction of the nominal one."),
+        "aitken": Key("bool", default=True,
+                      doc="Aitken relaxation of successive Newton corrections (steadies "
+                          "the DEM's approximate tangent; false: plain Newton, "
+                          "quadratic with an exact tangent)."),
         "check_residual": Key("bool", default=True,
                               doc="Converge on residual and correction; false: on the "
                                   "correction over the step's displacement (YADE "
@@ -285,6 +325,15 @@ def validate_problem(data, source="<problem>", base_dir="."):
     if out["imperfection"] and out["micro"]["model"] not in ("dem", "adaptive"):
         ctx.fail(f"needs [micro] model = \"dem\" or \"adaptive\", not "
                  f"\"{out['micro']['model']}\"", "[[imperfection]] #1")
+    kin = out["solver"]["kinematics"]
+    if kin is None:
+        kin = "small" if out["micro"]["model"] in SMALL_ONLY else "finite"
+        out["solver"]["kinematics"] = kin
+    elif kin == "finite" and out["micro"]["model"] in SMALL_ONLY:
+        ctx.fail(f"kinematics = \"finite\" needs an objective micro model; "
+                 f"\"{out['micro']['model']}\" is a small-strain law (use "
+                 f"\"hypoelastic\" or \"neo_hookean\", or kinematics = \"small\")",
+                 "[solver]")
     if out["micro"]["model"] in ("dem", "adaptive"):
         from .experiment import check_shape
         from .micro import PERTURBATION_NEEDS_RELAX
@@ -331,7 +380,7 @@ def build_macro(problem):
                 raise SceneError(f"{src}: [[{kind}]] #{i + 1} boundary "
                                  f"\"{c['boundary']}\" is not a boundary of the mesh "
                                  f"(known: {', '.join(sorted(known)) or 'none'})")
-    return Macro(mesh, m["element"])
+    return Macro(mesh, m["element"], problem["solver"]["kinematics"])
 
 
 def vertex_at(mesh, point):
@@ -367,8 +416,10 @@ def _cut_boundaries(problem, mesh):
 
 
 def build_loads(problem, macro):
-    """Supports and the constant and ramped external force vectors."""
+    """Supports, the constant and ramped external force vectors (dead loads), and the
+    configuration-dependent loads of finite kinematics (:mod:`hmm.loads`)."""
     from .coupling import Supports
+    from .loads import CurrentBodyForce, CurrentTraction, FollowerPressure
 
     dofs, values = [], []
     for c in problem["dirichlet"]:
@@ -387,18 +438,28 @@ def build_loads(problem, macro):
                                             if c["boundary"] is not None)))
     f_const = np.zeros(macro.n_dofs)
     f_ramp = np.zeros(macro.n_dofs)
+    loads = []
     for p in problem["pressure"]:
+        if macro.finite and p["follower"]:
+            loads.append(FollowerPressure(p["boundary"], float(p["value"]), p["ramp"]))
+            continue
         f = macro.pressure_force(p["boundary"], p["value"])
         if p["ramp"]:
             f_ramp += f
         else:
             f_const += f
     for t in problem["traction"]:
-        f_ramp += macro.traction_force(t["boundary"], t["value"])
-    b = problem["body_force"]["value"]
-    if any(b):
-        f_ramp += macro.body_force(b)
-    return supports, f_const, f_ramp
+        if macro.finite and t["per"] == "current":
+            loads.append(CurrentTraction(t["boundary"], tuple(t["value"])))
+        else:
+            f_ramp += macro.traction_force(t["boundary"], t["value"])
+    b = problem["body_force"]
+    if any(b["value"]):
+        if macro.finite and b["per"] == "current":
+            loads.append(CurrentBodyForce(tuple(b["value"])))
+        else:
+            f_ramp += macro.body_force(b["value"])
+    return supports, f_const, f_ramp, tuple(loads)
 
 
 def build_farm(problem, macro, progress=None):
@@ -450,7 +511,8 @@ def model_factory(problem, dim, progress=None, points=None):
     ``[[imperfection]]`` is made on first use, so a rank that owns none of its points
     never builds it. ``points`` are the Gauss points' coordinates (n_gp, d).
     """
-    from .micro import Adaptive, DEMMicroModel, Hyperbolic, LinearElastic
+    from .micro import (Adaptive, DEMMicroModel, Hyperbolic, Hypoelastic, LinearElastic,
+                        NeoHookean)
 
     mc = problem["micro"]
     kind = mc["model"]
@@ -459,6 +521,11 @@ def model_factory(problem, dim, progress=None, points=None):
     if kind == "hyperbolic":
         return lambda g: Hyperbolic(mc["young"], mc["poisson"], mc["gamma_ref"], dim,
                                     mc["stress0"])
+    if kind == "hypoelastic":
+        return lambda g: Hypoelastic(mc["young"], mc["poisson"], dim, mc["stress0"])
+    if kind == "neo_hookean":
+        return lambda g: NeoHookean(mc["young"], mc["poisson"], dim)
+    finite = problem["solver"]["kinematics"] == "finite"
     packings = [_packing(problem, k, dim, progress) for k in range(mc["packings"])]
     if problem["imperfection"] and points is None:
         raise ValueError("[[imperfection]] needs the Gauss points' coordinates")
@@ -477,7 +544,7 @@ def model_factory(problem, dim, progress=None, points=None):
         m = DEMMicroModel(clone_rve(packing_of(g)), tangent=mc["tangent"],
                           relax=mc["relax"])
         if kind == "adaptive":
-            m = Adaptive(m, mc["strain_threshold"], mc["ratio_threshold"])
+            m = Adaptive(m, mc["strain_threshold"], mc["ratio_threshold"], finite)
         return m
 
     return factory

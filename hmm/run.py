@@ -59,7 +59,7 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     say = (echo if rank == 0 else None) or (lambda line: None)
     t0 = time.perf_counter()
     macro = build_macro(problem)
-    supports, f_const, f_ramp = build_loads(problem, macro)
+    supports, f_const, f_ramp, loads = build_loads(problem, macro)
     say(f"mesh: {macro.n_elems} {macro.element} elements, {macro.n_dofs} dofs, "
         f"{macro.n_gp} Gauss points" + (f", {comm.Get_size()} MPI ranks" if comm else ""))
     driven = [(c["boundary"], "xyz".index(c["component"])) for c in problem["dirichlet"]
@@ -102,7 +102,7 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
         farm.serve()
         return None
     try:
-        summary = _solve(problem, macro, farm, supports, f_const, f_ramp, out, progress,
+        summary = _solve(problem, macro, farm, supports, (f_const, f_ramp, loads), out, progress,
                          say, t0, ck, stop_after)
     finally:
         if comm is not None:
@@ -113,13 +113,14 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     return summary
 
 
-def _solve(problem, macro, farm, supports, f_const, f_ramp, out, progress, say, t0,
+def _solve(problem, macro, farm, supports, loading, out, progress, say, t0,
            ck, stop_after):
     say(f"micro models ready ({problem['micro']['model']}) in "
         f"{time.perf_counter() - t0:.1f} s")
     st = problem["solver"]
     settings = SolverSettings.from_section(st)
-    solver = Solver(macro, farm, supports, f_const, f_ramp, settings)
+    f_const, f_ramp, loads = loading
+    solver = Solver(macro, farm, supports, f_const, f_ramp, settings, loads)
     n = problem["load"]["steps"]
     first = 1
     if ck is None:
@@ -147,8 +148,9 @@ def _solve(problem, macro, farm, supports, f_const, f_ramp, out, progress, say, 
                 done = solver.iterations[-1] if solver.iterations else 0
                 out.stopped(k if partial else k - 1, solver, farm.measures(), done,
                             str(err), partial=partial)
-                raise SolverError(f"{err}; that state (load factor {solver.t:.6g}) is "
-                                  f"the last frame of {out.path}") from err
+                raise SolverError(f"load step {k} of {n}: {err}; that state (load "
+                                  f"factor {solver.t:.6g}) is the last frame of "
+                                  f"{out.path}") from err
             out.write(k, solver, farm.measures(), its, force_frame=(k == n))
             log.info("load step %d of %d done: load factor %.6g, %d Newton iterations, "
                      "%d cuts so far, %.1f s", k, n, solver.t, its, solver.cuts,

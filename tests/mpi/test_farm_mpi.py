@@ -29,6 +29,7 @@ def _small_demo(steps=3):
     prob["micro"]["count"] = 30
     prob["load"]["steps"] = steps
     prob["dirichlet"][2]["value"] = -0.0001 * steps
+    prob["solver"]["kinematics"] = "finite"  # the RVEs turn, the mesh moves
     return validate_problem(prob)
 
 
@@ -47,8 +48,8 @@ def _all_ranks_agree(ok, message=""):
 
 def _solve(problem, farm, steps):
     macro = build_macro(problem)
-    sup, fc, fr = build_loads(problem, macro)
-    solver = Solver(macro, farm, sup, fc, fr, SolverSettings(5e-3, 5e-3, 10))
+    sup, fc, fr, loads = build_loads(problem, macro)
+    solver = Solver(macro, farm, sup, fc, fr, SolverSettings(5e-3, 5e-3, 10), loads)
     for k in range(1, steps + 1):
         solver.advance(k / steps - solver.t)
     return solver
@@ -116,9 +117,9 @@ def test_a_failing_point_on_rank_one_ends_the_run_with_its_id():
     assert bad not in farm.models or COMM.rank == 1
     if COMM.rank == 0:
         try:
-            sup, fc, fr = build_loads(problem, macro)
+            sup, fc, fr, loads = build_loads(problem, macro)
             try:
-                Solver(macro, farm, sup, fc, fr, SolverSettings(min_step=0.25))
+                Solver(macro, farm, sup, fc, fr, SolverSettings(min_step=0.25), loads)
                 message = "no failure"
             except Exception as err:  # noqa: BLE001 - the message is the test
                 message = str(err)

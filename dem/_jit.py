@@ -1,4 +1,4 @@
-"""The only place numba options are chosen.
+"""Every compile path of the package: numba options, specialised loops, user SDFs.
 
 ``kernel`` is ``numba.njit`` with the project defaults: cached on disk (turn off with
 ``DEM_JIT_CACHE=0``), IEEE arithmetic (no ``fastmath``) and numpy's error model, so a
@@ -11,12 +11,29 @@ kernel (or an upgrade of the package) it would load a time loop compiled with th
 code. The cache therefore lives in a folder named after a hash of every source file of
 the package, ``<NUMBA_CACHE_DIR or the package's __pycache__>/dem-<hash>``: a changed
 file means a cold compile, never a stale kernel.
+
+Builders
+--------
+Two things are compiled per scene rather than per package, both here:
+
+* :func:`specialise`: a loop written once, compiled with some of the module-level
+  kernels it calls replaced (the shape loop with the ADMM solver bound to a user's SDF).
+* :func:`sdf_address` and :func:`call_sdf`: a user's ``@numba.njit`` SDF wrapped as a C
+  function, and the call of that function by its address from compiled code, so that
+  the solvers are compiled (and cached) once for every SDF, with the address a runtime
+  argument.
 """
 
 import hashlib
 import os
+import types as pytypes
 
 import numba
+import numpy as np
+from llvmlite import ir as llvm_ir
+from numba import carray, cfunc
+from numba.core import types
+from numba.extending import intrinsic, overload
 
 CACHE = os.environ.get("DEM_JIT_CACHE", "1") != "0"
 
@@ -44,16 +61,126 @@ if "NUMBA_THREADING_LAYER" not in os.environ:
     numba.config.THREADING_LAYER = "omp"
 
 
-def kernel(fn=None, *, parallel=False, inline=False):
+def kernel(fn=None, *, parallel=False, inline=False, cache=True):
     """``numba.njit`` with project defaults; ``parallel=True`` only where a prange exists.
 
     ``inline=True`` inlines the function into its callers at numba's IR level: for the
     small per-contact kernels (laws) called from hot loops, where a real call would pass
     every array as a dozen scalar arguments.
+
+    ``cache=False`` keeps the function off the disk cache even where ``DEM_JIT_CACHE``
+    allows it: for helpers that are only ever compiled into a cached caller (the ADMM
+    solver's pieces), and for functions that hold per-process objects (see
+    :func:`specialise`).
     """
-    deco = numba.njit(cache=CACHE, parallel=parallel, fastmath=False, error_model="numpy",
-                      inline="always" if inline else "never")
+    deco = numba.njit(cache=CACHE and cache, parallel=parallel, fastmath=False,
+                      error_model="numpy", inline="always" if inline else "never")
     return deco if fn is None else deco(fn)
+
+
+def specialise(py_func, *, parallel=False, **bind):
+    """Compile ``py_func`` as :func:`kernel` does, with the globals ``bind`` replaced.
+
+    A loop factory writes its loop once, calling module-level kernels by their global
+    names; a scene that needs another kernel in one of those places (the shape loop's
+    ``_ADMM``, bound to the ADMM solver of a user's SDF) gets the same code compiled
+    over ``{**py_func.__globals__, **bind}``. Numba reads globals once, at compile time,
+    so the binding holds for the life of the returned dispatcher.
+
+    Caching: numba keys its disk cache on a function's code, the values of its closure
+    cells and the signature, not on its globals, so two bindings of one function would
+    share (and overwrite) one cache entry; and a bound object may be valid in this
+    process only (a kernel holding the address of a user's compiled SDF). A function
+    whose globals are really replaced is therefore compiled with ``cache=False``.
+    Names bound to the object they already hold are no replacement: with nothing else
+    bound the function compiles exactly as ``kernel(py_func, parallel=parallel)``, and
+    caches as any kernel does.
+
+    Examples
+    --------
+    >>> SCALE = 2.0
+    >>> def scaled(x):
+    ...     return SCALE * x
+    >>> scaled(3.0), specialise(scaled, SCALE=10.0)(3.0)
+    (6.0, 30.0)
+    """
+    own = py_func.__globals__
+    bind = {k: v for k, v in bind.items() if k not in own or own[k] is not v}
+    if not bind:
+        return kernel(py_func, parallel=parallel)
+    fn = pytypes.FunctionType(py_func.__code__, {**own, **bind}, py_func.__name__,
+                              py_func.__defaults__, py_func.__closure__)
+    return kernel(fn, parallel=parallel, cache=False)
+
+
+# --------------------------------------------------------------------------- user SDFs
+#: parameters of a user SDF: ``sdf(x, y, z, p)`` reads ``p[0] .. p[N_SDF_PARAMS - 1]``
+N_SDF_PARAMS = 4
+#: the C signature of a wrapped user SDF: ``double f(double x, double y, double z,
+#: double *p)``
+SDF_SIGNATURE = types.float64(types.float64, types.float64, types.float64,
+                              types.CPointer(types.float64))
+_WRAPPERS = {}
+
+
+def sdf_address(sdf):
+    """The ``fn`` argument that hands the user's SDF to compiled solvers.
+
+    ``sdf`` is a ``@numba.njit`` function ``sdf(x, y, z, p) -> float`` (``p`` a (4,)
+    float64 array). It is wrapped once per process in a C function of
+    :data:`SDF_SIGNATURE` (kept alive here, for every call through its address) and
+    its address is returned as an int64, to be passed on to :func:`call_sdf`. Under
+    ``NUMBA_DISABLE_JIT`` the function itself is returned: :func:`call_sdf` then calls
+    it directly.
+    """
+    if numba.config.DISABLE_JIT:
+        return sdf
+    if sdf not in _WRAPPERS:
+        @cfunc(SDF_SIGNATURE, error_model="numpy")
+        def wrapper(x, y, z, p):
+            return sdf(x, y, z, carray(p, N_SDF_PARAMS))
+
+        _WRAPPERS[sdf] = wrapper
+    return np.int64(_WRAPPERS[sdf].address)
+
+
+def call_sdf(fn, x, y, z, p):
+    """The user's SDF at ``(x, y, z)`` with parameters ``p`` (a (4,) float64 array):
+    ``fn`` is :func:`sdf_address`'s answer, an address in compiled code (the C function
+    called through it) and the Python function when interpreted."""
+    return fn(x, y, z, p)
+
+
+@intrinsic
+def _call_address(typingctx, address, x, y, z, p):
+    """Call the C function ``double f(double, double, double, double*)`` at ``address``."""
+    sig = types.float64(address, x, y, z, p)
+
+    def codegen(context, builder, signature, args):
+        double = llvm_ir.DoubleType()
+        fnty = llvm_ir.FunctionType(double, [double, double, double, double.as_pointer()])
+        fn = builder.inttoptr(args[0], fnty.as_pointer())
+        return builder.call(fn, args[1:])
+
+    return sig, codegen
+
+
+@intrinsic
+def _as_pointer(typingctx, address):
+    """An integer address as a ``float64*``."""
+    sig = types.CPointer(types.float64)(address)
+
+    def codegen(context, builder, signature, args):
+        return builder.inttoptr(args[0], context.get_value_type(signature.return_type))
+
+    return sig, codegen
+
+
+@overload(call_sdf, jit_options={"cache": False})
+def _call_sdf_compiled(fn, x, y, z, p):
+    def impl(fn, x, y, z, p):
+        return _call_address(fn, x, y, z, _as_pointer(p.ctypes.data))
+    return impl
 
 
 def set_threads(n):

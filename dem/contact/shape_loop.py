@@ -33,12 +33,11 @@ second half kick.
 """
 
 import math
-import types
 
 import numba
 import numpy as np
 
-from .._jit import kernel
+from .._jit import kernel, specialise
 from ..rotation import to_body, to_world
 from ..shapes.table import (
     BOX,
@@ -412,14 +411,9 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                 done += 1
         return done
 
-    if custom_sdf is None:
-        run = kernel(parallel=True)(run_shape_steps)
-    else:  # the same code with ``_ADMM`` bound to the user's SDF; not cached on disk
-        fn = types.FunctionType(run_shape_steps.__code__,
-                                {**globals(), "_ADMM": make_admm(custom_sdf)},
-                                run_shape_steps.__name__, run_shape_steps.__defaults__,
-                                run_shape_steps.__closure__)
-        run = numba.njit(parallel=True, error_model="numpy")(fn)
+    # with a custom shape, the same code with ``_ADMM`` bound to the user's SDF (not
+    # cached on disk); without, ``_ADMM`` stays the global below and the loop caches
+    run = specialise(run_shape_steps, parallel=True, _ADMM=make_admm(custom_sdf))
     _STEPPERS[key] = run
     return run
 

@@ -34,8 +34,8 @@ Every detection kernel returns ``(ov, nx, ny, nz, cx, cy, cz, iters)`` (2D: ``nz
 Modules
 -------
 analytic    closed forms: sphere-sphere, sphere-plane, sphere-polytope, polytope-plane
-polytope    the exact solver for polygon-polygon (2D) and polyhedron-polyhedron (3D)
-sat         its separating-axis contact for an edge across an edge (3D)
+polytope    the exact solver for polygon-polygon (2D) and polyhedron-polyhedron (3D), with
+            its separating-axis contact for an edge across an edge (3D)
 admm        ADMM (Douglas-Rachford) on any two SDFs, warm-started from the last step
 nodes       the surface-node method of LS-DEM, the baseline of the speed-accuracy chart
 """

@@ -1,0 +1,282 @@
+"""3D: the programme of a polyhedron's point deepest in another, and the early exit.
+
+:func:`_deepest3` is the simplex method of :mod:`dem.contact.detection.polytope` for
+four unknowns ``(x, y, z, t)``, started at a corner of the searched body
+(:func:`_corner3`); :func:`_separation3` is the cheap half of the separating-axis test
+(each body's faces against the other's vertices).
+"""
+
+import math
+
+from ...._jit import kernel
+from .common import _CROSS, _MAX_PIVOTS, _cross4, cross3, face_row3
+
+
+@kernel
+def _separation3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22,
+                 px, py, pz, vstart, verts, fstart, faces):
+    """Gap (> 0) between a face plane of the outer polyhedron and all inner vertices.
+
+    The inner body sits in the outer frame at ``R x + p``.
+    """
+    best = -math.inf
+    for f in range(fstart[so], fstart[so + 1]):
+        nx, ny, nz = faces[f, 0], faces[f, 1], faces[f, 2]
+        mx = r00 * nx + r10 * ny + r20 * nz  # R^T n: the normal in the inner frame
+        my = r01 * nx + r11 * ny + r21 * nz
+        mz = r02 * nx + r12 * ny + r22 * nz
+        off = sco * faces[f, 3] - nx * px - ny * py - nz * pz
+        lo = math.inf
+        for v in range(vstart[si], vstart[si + 1]):
+            val = sci * (mx * verts[v, 0] + my * verts[v, 1] + mz * verts[v, 2]) - off
+            lo = min(lo, val)
+            if lo <= 0.0:
+                break
+        best = max(best, lo)
+        if best > 0.0:
+            break
+    return best
+
+
+@kernel(inline=True)
+def _row3(k, nfo, fo0, fi0, faces, sco, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22,
+          px, py, pz):
+    """Constraint row ``k`` (gx, gy, gz, gt, h) in the outer frame (outer faces first)."""
+    if k < nfo:
+        f = fo0 + k
+        return faces[f, 0], faces[f, 1], faces[f, 2], -1.0, sco * faces[f, 3]
+    ax, ay, az, h = face_row3(fi0 + k - nfo, sci, r00, r01, r02, r10, r11, r12, r20, r21,
+                              r22, px, py, pz, faces)
+    return ax, ay, az, 0.0, h
+
+
+@kernel(inline=True)
+def _corner3(si, v, fstart, faces, verts, eps):
+    """Three faces of polyhedron ``si`` through vertex ``v`` spanning space best, and
+    |det| of their normals (near 0: ``v`` is not a corner)."""
+    g1, g2, g3 = -1, -1, -1
+    x, y, z = verts[v, 0], verts[v, 1], verts[v, 2]
+    best2, best3 = -1.0, -1.0
+    for g in range(fstart[si], fstart[si + 1]):
+        if faces[g, 0] * x + faces[g, 1] * y + faces[g, 2] * z - faces[g, 3] < -eps:
+            continue
+        if g1 < 0:
+            g1 = g
+            continue
+        cx, cy, cz = cross3(faces[g1, 0], faces[g1, 1], faces[g1, 2],
+                            faces[g, 0], faces[g, 1], faces[g, 2])
+        w = cx * cx + cy * cy + cz * cz
+        if w > best2:
+            best2, g2 = w, g
+    if g2 < 0:
+        return g1, g2, g3, 0.0
+    cx, cy, cz = cross3(faces[g1, 0], faces[g1, 1], faces[g1, 2],
+                        faces[g2, 0], faces[g2, 1], faces[g2, 2])
+    for g in range(fstart[si], fstart[si + 1]):
+        if faces[g, 0] * x + faces[g, 1] * y + faces[g, 2] * z - faces[g, 3] < -eps:
+            continue
+        w = abs(cx * faces[g, 0] + cy * faces[g, 1] + cz * faces[g, 2])
+        if w > best3:
+            best3, g3 = w, g
+    return g1, g2, g3, best3
+
+
+@kernel
+def _deepest3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz,
+              vstart, verts, fstart, faces, brad, tol):
+    """Minimise the outer polyhedron's face function over the inner one (outer frame).
+
+    Returns ``(t, x, y, z, nx, ny, nz, count, pivots, k0, k1, k2, k3, sw, swx, swy,
+    swz)`` as :func:`.simplex2._deepest2`, with the rows of the final basis (outer
+    faces ``0 .. nfo - 1``, then inner faces).
+    """
+    fo0, nfo = fstart[so], fstart[so + 1] - fstart[so]
+    fi0, nfi = fstart[si], fstart[si + 1] - fstart[si]
+    vi0, nvi = vstart[si], vstart[si + 1] - vstart[si]
+    # start: the inner vertex where the outer face function is least
+    fmin, lo2, vb = math.inf, math.inf, vi0  # the two least values, the first's vertex
+    sw, swx, swy, swz = 0.0, 0.0, 0.0, 0.0  # the inner vertices inside, weighted by depth
+    for v in range(vi0, vi0 + nvi):
+        lx, ly, lz = sci * verts[v, 0], sci * verts[v, 1], sci * verts[v, 2]
+        wx = r00 * lx + r01 * ly + r02 * lz + px
+        wy = r10 * lx + r11 * ly + r12 * lz + py
+        wz = r20 * lx + r21 * ly + r22 * lz + pz
+        fv = -math.inf
+        for f in range(fo0, fo0 + nfo):
+            fv = max(fv, faces[f, 0] * wx + faces[f, 1] * wy + faces[f, 2] * wz
+                     - sco * faces[f, 3])
+        if fv < 0.0:
+            sw -= fv
+            swx -= fv * wx
+            swy -= fv * wy
+            swz -= fv * wz
+        if fv < fmin:
+            fmin, lo2, vb = fv, fmin, v
+        elif fv < lo2:
+            lo2 = fv
+    eps = 1e-9 * brad[si]
+    ga, gb, gc, dt3 = _corner3(si, vb, fstart, faces, verts, eps)
+    if dt3 < 1e-6:  # not a corner (a vertex on an edge or a face): take the first corner
+        for v in range(vi0, vi0 + nvi):
+            ga, gb, gc, dt3 = _corner3(si, v, fstart, faces, verts, eps)
+            if dt3 >= 1e-6:
+                vb = v
+                break
+    lx, ly, lz = sci * verts[vb, 0], sci * verts[vb, 1], sci * verts[vb, 2]
+    wx = r00 * lx + r01 * ly + r02 * lz + px
+    wy = r10 * lx + r11 * ly + r12 * lz + py
+    wz = r20 * lx + r21 * ly + r22 * lz + pz
+    fv, fb = -math.inf, 0
+    for k in range(nfo):
+        f = fo0 + k
+        val = faces[f, 0] * wx + faces[f, 1] * wy + faces[f, 2] * wz - sco * faces[f, 3]
+        if val > fv:
+            fv, fb = val, k
+    k0, k1, k2, k3 = nfo + ga - fi0, nfo + gb - fi0, nfo + gc - fi0, fb
+    g0x, g0y, g0z, g0t, h0 = _row3(k0, nfo, fo0, fi0, faces, sco, sci, r00, r01, r02, r10,
+                                   r11, r12, r20, r21, r22, px, py, pz)
+    g1x, g1y, g1z, g1t, h1 = _row3(k1, nfo, fo0, fi0, faces, sco, sci, r00, r01, r02, r10,
+                                   r11, r12, r20, r21, r22, px, py, pz)
+    g2x, g2y, g2z, g2t, h2 = _row3(k2, nfo, fo0, fi0, faces, sco, sci, r00, r01, r02, r10,
+                                   r11, r12, r20, r21, r22, px, py, pz)
+    g3x, g3y, g3z, g3t, h3 = _row3(k3, nfo, fo0, fi0, faces, sco, sci, r00, r01, r02, r10,
+                                   r11, r12, r20, r21, r22, px, py, pz)
+    zx, zy, zz, zt = wx, wy, wz, fv
+    bland = False
+    it = 0
+    while True:
+        c0x, c0y, c0z, c0t = _cross4(g1x, g1y, g1z, g1t, g2x, g2y, g2z, g2t,
+                                     g3x, g3y, g3z, g3t)
+        c1x, c1y, c1z, c1t = _cross4(g0x, g0y, g0z, g0t, g2x, g2y, g2z, g2t,
+                                     g3x, g3y, g3z, g3t)
+        c2x, c2y, c2z, c2t = _cross4(g0x, g0y, g0z, g0t, g1x, g1y, g1z, g1t,
+                                     g3x, g3y, g3z, g3t)
+        c3x, c3y, c3z, c3t = _cross4(g0x, g0y, g0z, g0t, g1x, g1y, g1z, g1t,
+                                     g2x, g2y, g2z, g2t)
+        e0 = g0x * c0x + g0y * c0y + g0z * c0z + g0t * c0t
+        e1 = g1x * c1x + g1y * c1y + g1z * c1z + g1t * c1t
+        e2 = g2x * c2x + g2y * c2y + g2z * c2z + g2t * c2t
+        e3 = g3x * c3x + g3y * c3y + g3z * c3z + g3t * c3t
+        if abs(e0) < 1e-14:
+            break  # singular basis: cannot happen with pivots crossing by _CROSS
+        w0, w1, w2, w3 = h0 / e0, h1 / e1, h2 / e2, h3 / e3
+        zx = c0x * w0 + c1x * w1 + c2x * w2 + c3x * w3
+        zy = c0y * w0 + c1y * w1 + c2y * w2 + c3y * w3
+        zz = c0z * w0 + c1z * w1 + c2z * w2 + c3z * w3
+        zt = c0t * w0 + c1t * w1 + c2t * w2 + c3t * w3
+        l0, l1, l2, l3 = -c0t / e0, -c1t / e1, -c2t / e2, -c3t / e3  # multipliers
+        # leaving row: most negative multiplier, or the smallest index (Bland)
+        j, lj, kj = -1, -1e-12, 1 << 30
+        if bland:
+            if l0 < lj and k0 < kj:
+                j, kj = 0, k0
+            if l1 < lj and k1 < kj:
+                j, kj = 1, k1
+            if l2 < lj and k2 < kj:
+                j, kj = 2, k2
+            if l3 < lj and k3 < kj:
+                j, kj = 3, k3
+        else:
+            if l0 < lj:
+                j, lj = 0, l0
+            if l1 < lj:
+                j, lj = 1, l1
+            if l2 < lj:
+                j, lj = 2, l2
+            if l3 < lj:
+                j, lj = 3, l3
+        if j < 0 or it >= _MAX_PIVOTS:
+            break  # optimal
+        it += 1
+        if j == 0:
+            dx, dy, dz, dt = -c0x / e0, -c0y / e0, -c0z / e0, -c0t / e0
+        elif j == 1:
+            dx, dy, dz, dt = -c1x / e1, -c1y / e1, -c1z / e1, -c1t / e1
+        elif j == 2:
+            dx, dy, dz, dt = -c2x / e2, -c2y / e2, -c2z / e2, -c2t / e2
+        else:
+            dx, dy, dz, dt = -c3x / e3, -c3y / e3, -c3z / e3, -c3t / e3
+        # ratio test; inner rows are read in the inner frame (R^T)
+        ux, uy, uz = zx - px, zy - py, zz - pz
+        xin = r00 * ux + r10 * uy + r20 * uz
+        yin = r01 * ux + r11 * uy + r21 * uz
+        zin = r02 * ux + r12 * uy + r22 * uz
+        dxin = r00 * dx + r10 * dy + r20 * dz
+        dyin = r01 * dx + r11 * dy + r21 * dz
+        dzin = r02 * dx + r12 * dy + r22 * dz
+        eps = _CROSS * (abs(dx) + abs(dy) + abs(dz) + abs(dt))
+        rmin, kin, gbest = math.inf, -1, 0.0
+        for k in range(nfo + nfi):
+            if k == k0 or k == k1 or k == k2 or k == k3:
+                continue
+            if k < nfo:
+                f = fo0 + k
+                gd = faces[f, 0] * dx + faces[f, 1] * dy + faces[f, 2] * dz - dt
+                if gd <= eps:
+                    continue
+                sl = sco * faces[f, 3] - (faces[f, 0] * zx + faces[f, 1] * zy
+                                          + faces[f, 2] * zz - zt)
+            else:
+                g = fi0 + k - nfo
+                gd = faces[g, 0] * dxin + faces[g, 1] * dyin + faces[g, 2] * dzin
+                if gd <= eps:
+                    continue
+                sl = sci * faces[g, 3] - (faces[g, 0] * xin + faces[g, 1] * yin
+                                          + faces[g, 2] * zin)
+            r = max(sl, 0.0) / gd
+            if r < rmin - tol:
+                rmin, kin, gbest = r, k, gd
+            elif r <= rmin + tol and not bland and gd > gbest:
+                rmin, kin, gbest = min(r, rmin), k, gd
+        if kin < 0:
+            break  # unbounded in round-off: keep the vertex
+        bland = rmin * (abs(dx) + abs(dy) + abs(dz)) <= tol
+        gx, gy, gz, gt, h = _row3(kin, nfo, fo0, fi0, faces, sco, sci, r00, r01, r02, r10,
+                                  r11, r12, r20, r21, r22, px, py, pz)
+        if j == 0:
+            k0, g0x, g0y, g0z, g0t, h0 = kin, gx, gy, gz, gt, h
+        elif j == 1:
+            k1, g1x, g1y, g1z, g1t, h1 = kin, gx, gy, gz, gt, h
+        elif j == 2:
+            k2, g2x, g2y, g2z, g2t, h2 = kin, gx, gy, gz, gt, h
+        else:
+            k3, g3x, g3y, g3z, g3t, h3 = kin, gx, gy, gz, gt, h
+    # ties: the average of the optimal inner vertices, the sum of the maximal faces
+    count = 1 if fmin <= zt + tol else 0
+    if lo2 <= zt + tol:
+        count = 0
+        sx, sy, sz = 0.0, 0.0, 0.0
+        for v in range(vi0, vi0 + nvi):
+            lx, ly, lz = sci * verts[v, 0], sci * verts[v, 1], sci * verts[v, 2]
+            wx = r00 * lx + r01 * ly + r02 * lz + px
+            wy = r10 * lx + r11 * ly + r12 * lz + py
+            wz = r20 * lx + r21 * ly + r22 * lz + pz
+            fv = -math.inf
+            for f in range(fo0, fo0 + nfo):
+                fv = max(fv, faces[f, 0] * wx + faces[f, 1] * wy + faces[f, 2] * wz
+                         - sco * faces[f, 3])
+            if fv <= zt + tol:
+                sx += wx
+                sy += wy
+                sz += wz
+                count += 1
+        if count > 0:
+            zx, zy, zz = sx / count, sy / count, sz / count
+    nx, ny, nz = 0.0, 0.0, 0.0
+    for f in range(fo0, fo0 + nfo):
+        if (faces[f, 0] * zx + faces[f, 1] * zy + faces[f, 2] * zz - sco * faces[f, 3]
+                >= zt - tol):
+            nx += faces[f, 0]
+            ny += faces[f, 1]
+            nz += faces[f, 2]
+    norm = math.sqrt(nx * nx + ny * ny + nz * nz)
+    if norm < 1e-6:  # opposite faces tied (the point on a medial axis): the first
+        best = -math.inf
+        for f in range(fo0, fo0 + nfo):
+            val = (faces[f, 0] * zx + faces[f, 1] * zy + faces[f, 2] * zz
+                   - sco * faces[f, 3])
+            if val > best:
+                best, nx, ny, nz = val, faces[f, 0], faces[f, 1], faces[f, 2]
+        norm = 1.0
+    return (zt, zx, zy, zz, nx / norm, ny / norm, nz / norm, count, it,
+            k0, k1, k2, k3, sw, swx, swy, swz)

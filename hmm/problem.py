@@ -298,7 +298,7 @@ def validate_problem(data, source="<problem>", base_dir="."):
     ...                   "micro": {"model": "dem", "young": 1e6}})
     Traceback (most recent call last):
     ...
-    dem.io.scene.SceneError: <problem>: [micro] young is not used with model = "dem" (only with "linear_elastic" or "hyperbolic")
+    dem.io.scene.SceneError: <problem>: [micro] young is not used with model = "dem" (only with "linear_elastic", "hyperbolic", "hypoelastic" or "neo_hookean")
     """
     out, ctx = validate(data, SCHEMA, source, base_dir, dim_key=("mesh", "dim"))
     m = out["mesh"]

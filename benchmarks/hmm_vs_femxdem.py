@@ -517,7 +517,7 @@ def visualize(data):
         ax.set(xlabel="axial strain [%]",
                ylabel="mean stress [kPa] (compression +; dotted: -σxx)", title=title)
         ax.title.set_fontsize(9)
-        ax.legend(fontsize=8, loc="upper left")
+        ax.legend(fontsize=8, loc="lower right")
     return fig
 
 

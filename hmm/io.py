@@ -332,9 +332,9 @@ class Output:
             if u.size == 0:
                 continue
             sign = -1.0 if u[-1, a] < 0.0 else 1.0  # plot shortening as positive
-            ax.plot(sign * u[:, a], sign * f[:, a], "o-", ms=3,
+            ax.plot(1e3 * sign * u[:, a], sign * f[:, a], "o-", ms=3,
                     label=f"{b}, {_AXES[a]} component")
-        ax.set_xlabel("prescribed displacement [m] (positive: into the sample)")
+        ax.set_xlabel("prescribed displacement [mm] (positive: into the sample)")
         ax.set_ylabel("reaction force [N]" + (" per m thickness" if d == 2 else ""))
         ax.grid(alpha=0.3)
         ax.legend()

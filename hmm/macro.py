@@ -185,6 +185,7 @@ class Macro:
         self.elem = ElementVector(elem_cls())
         self.order = order
         self.basis = Basis(mesh, self.elem, intorder=order)
+        self._facet_bases = {}  # boundary name -> FacetBasis, built on first use
         self.n_elems = self.basis.nelems
         self.n_qp = self.basis.X.shape[-1]
         self.n_gp = self.n_elems * self.n_qp
@@ -282,10 +283,15 @@ class Macro:
         return asm(_stiffness_finite, self.basis, A=self.from_gp(a), Finv=finv, J=jac)
 
     def _facets(self, boundary):
+        """The facet basis of a boundary on the initial mesh, built once: the forms
+        of every load, dead or following, are integrated there."""
         if boundary not in self.mesh.boundaries:
             raise KeyError(boundary)
-        return FacetBasis(self.mesh, self.elem, facets=self.mesh.boundaries[boundary],
-                          intorder=self.order)
+        if boundary not in self._facet_bases:
+            self._facet_bases[boundary] = FacetBasis(
+                self.mesh, self.elem, facets=self.mesh.boundaries[boundary],
+                intorder=self.order)
+        return self._facet_bases[boundary]
 
     def _facet_current(self, fb, u):
         """``(F^-1, J F^-T N)`` at the quadrature points of facets ``fb``."""

@@ -161,8 +161,11 @@ def visualize(data):
         n = [r["steps"] for r in rows]
         bx.plot(n, [1e-3 * r["peak_force"] for r in rows], mark + "-", color=color,
                 label=f"{kin}: peak load")
+    counts = sorted({r["steps"] for r in data["runs"] if r.get("ok")})
     bx.set(xlabel="load steps", ylabel="peak load [kN/m]", xscale="log",
            title="peak load and wall time against load steps")
+    bx.set_xticks(counts, [str(n) for n in counts])
+    bx.minorticks_off()
     tx = bx.twinx()
     for kin, (color, mark) in styles.items():
         rows = sorted((r for r in data["runs"] if r.get("ok") and r["kinematics"] == kin),

@@ -90,7 +90,27 @@ class MicroModel:
         raise NotImplementedError
 
 
-class LinearElastic(MicroModel):
+class _OneArrayLaw(MicroModel):
+    """An analytic law whose whole state is one array: the committed
+    ``self.<name>`` and the trial ``self._trial``, ``_STATE = (name, export key)``."""
+
+    _STATE = ("stress", "stress")
+
+    def commit(self):
+        setattr(self, self._STATE[0], self._trial.copy())
+
+    def rollback(self):
+        self._trial = getattr(self, self._STATE[0]).copy()
+
+    def export(self):
+        return {self._STATE[1]: getattr(self, self._STATE[0]).copy()}
+
+    def load(self, state):
+        setattr(self, self._STATE[0], np.array(state[self._STATE[1]], dtype=np.float64))
+        self.rollback()
+
+
+class LinearElastic(_OneArrayLaw):
     """Isotropic linear elasticity (plane strain in 2D) about an initial stress.
 
     Parameters
@@ -123,21 +143,8 @@ class LinearElastic(MicroModel):
         self._trial = self.stress + np.einsum("ijkl,kl->ij", self.tangent, eps)
         return self._trial.copy(), self.tangent
 
-    def commit(self):
-        self.stress = self._trial.copy()
 
-    def rollback(self):
-        self._trial = self.stress.copy()
-
-    def export(self):
-        return {"stress": self.stress.copy()}
-
-    def load(self, state):
-        self.stress = np.array(state["stress"], dtype=np.float64)
-        self._trial = self.stress.copy()
-
-
-class Hyperbolic(MicroModel):
+class Hyperbolic(_OneArrayLaw):
     """Nonlinear elasticity with a shear modulus that softens with shear strain.
 
     ``sigma = sigma0 + K tr(eps) I + 2 G(g) e`` with ``e`` the deviatoric strain,
@@ -157,6 +164,8 @@ class Hyperbolic(MicroModel):
         Initial stress [Pa].
     """
 
+    _STATE = ("strain", "strain")
+
     def __init__(self, young, poisson, gamma_ref, dim=2, stress0=0.0):
         lam, g0 = lame(young, poisson)
         if not gamma_ref > 0.0:
@@ -168,7 +177,7 @@ class Hyperbolic(MicroModel):
         s0 = np.asarray(stress0, dtype=np.float64)
         self.stress0 = s0 * np.eye(self.dim) if s0.ndim == 0 else s0.copy()
         self.strain = np.zeros((self.dim, self.dim))
-        self._trial_strain = self.strain.copy()
+        self._trial = self.strain.copy()
 
     def response(self, eps):
         """Stress and tangent at total strain ``eps`` (d, d)."""
@@ -185,21 +194,8 @@ class Hyperbolic(MicroModel):
         return sig, c
 
     def trial(self, deps):
-        self._trial_strain = self.strain + 0.5 * (deps + deps.T)
-        return self.response(self._trial_strain)
-
-    def commit(self):
-        self.strain = self._trial_strain.copy()
-
-    def rollback(self):
-        self._trial_strain = self.strain.copy()
-
-    def export(self):
-        return {"strain": self.strain.copy()}
-
-    def load(self, state):
-        self.strain = np.array(state["strain"], dtype=np.float64)
-        self._trial_strain = self.strain.copy()
+        self._trial = self.strain + 0.5 * (deps + deps.T)
+        return self.response(self._trial)
 
     @property
     def stress(self):
@@ -217,7 +213,7 @@ def _increment(g, dim):
     return f
 
 
-class Hypoelastic(MicroModel):
+class Hypoelastic(_OneArrayLaw):
     """Isotropic hypoelasticity with the Jaumann rate: ``sigma' = C : d``, with
     ``sigma'`` the co-rotational rate ``dsigma/dt - w sigma + sigma w``.
 
@@ -269,21 +265,8 @@ class Hypoelastic(MicroModel):
         self._trial = rest @ mid @ rest.T
         return self._trial.copy(), self.tangent
 
-    def commit(self):
-        self.stress = self._trial.copy()
 
-    def rollback(self):
-        self._trial = self.stress.copy()
-
-    def export(self):
-        return {"stress": self.stress.copy()}
-
-    def load(self, state):
-        self.stress = np.array(state["stress"], dtype=np.float64)
-        self._trial = self.stress.copy()
-
-
-class NeoHookean(MicroModel):
+class NeoHookean(_OneArrayLaw):
     """Compressible neo-Hookean hyperelasticity with its exact tangent.
 
     ``sigma = (mu (b - I) + lambda ln(J) I) / J``, ``b = F F^T``, ``J = det F``
@@ -308,11 +291,13 @@ class NeoHookean(MicroModel):
 
     objective = True
 
+    _STATE = ("f", "deformation")
+
     def __init__(self, young, poisson, dim=2):
         self.lam, self.mu = lame(young, poisson)
         self.dim = int(dim)
         self.f = np.eye(self.dim)
-        self._trial_f = self.f.copy()
+        self._trial = self.f.copy()
 
     def response(self, f):
         """Cauchy stress and tangent ``C`` at the deformation gradient ``f``."""
@@ -328,21 +313,8 @@ class NeoHookean(MicroModel):
         return sig, c
 
     def trial(self, deps):
-        self._trial_f = _increment(deps, self.dim) @ self.f
-        return self.response(self._trial_f)
-
-    def commit(self):
-        self.f = self._trial_f.copy()
-
-    def rollback(self):
-        self._trial_f = self.f.copy()
-
-    def export(self):
-        return {"deformation": self.f.copy()}
-
-    def load(self, state):
-        self.f = np.array(state["deformation"], dtype=np.float64)
-        self._trial_f = self.f.copy()
+        self._trial = _increment(deps, self.dim) @ self.f
+        return self.response(self._trial)
 
     @property
     def stress(self):

@@ -133,6 +133,15 @@ def test_rigid_rotation_turns_the_stress_of_analytic_laws_exactly():
         Hypoelastic(E, NU, stress0=s0).trial(np.zeros((2, 2)))[0], s0)
 
 
+def _shear_then_turn(t):
+    """The deformation of the turn tests at load factor t: a simple shear of 2e-3 to
+    t = 0.2, then a rigid turn of 90 degrees to t = 1."""
+    shear = np.array([[1.0, 2e-3], [0.0, 1.0]])
+    if t <= 0.2:
+        return np.eye(2) + t / 0.2 * (shear - np.eye(2))
+    return _turn(0.5 * math.pi * (t - 0.2) / 0.8) @ shear
+
+
 def test_rigid_rotation_turns_a_dem_rve_with_it():
     """One element of 30-disk RVEs, sheared by 2e-3, then turned rigidly by 90 degrees
     in 20 steps: the stress comes back turned, within the relaxation tolerance, the
@@ -142,14 +151,7 @@ def test_rigid_rotation_turns_a_dem_rve_with_it():
     packing = rvemod.generate(2, 30, (0.8e-3, 1.2e-3), law, p0=1e5, friction=0.0, seed=4)
     macro = Macro(structured_mesh("quad1", [1.0, 1.0], [1, 1]), "quad1", "finite")
     models = [DEMMicroModel(clone_rve(packing)) for _ in range(macro.n_gp)]
-    shear = np.array([[1.0, 2e-3], [0.0, 1.0]])
-
-    def path(t):
-        if t <= 0.2:
-            return np.eye(2) + t / 0.2 * (shear - np.eye(2))
-        return _turn(0.5 * math.pi * (t - 0.2) / 0.8) @ shear
-
-    solver = Solver(macro, SerialFarm(models), _all_nodes(macro, path))
+    solver = Solver(macro, SerialFarm(models), _all_nodes(macro, _shear_then_turn))
     work = 0.0
     for k in range(25):
         sig0 = solver.sigma.copy()
@@ -193,14 +195,7 @@ def test_rigid_rotation_turns_an_rve_of_polygons_with_it():
     models = [factory(g) for g in range(macro.n_gp)]
     rve = models[0].rve
     assert (rve.bodies.shape >= 0).all()  # every body a hexagon (a shape-table row)
-    shear = np.array([[1.0, 2e-3], [0.0, 1.0]])
-
-    def path(t):
-        if t <= 0.2:
-            return np.eye(2) + t / 0.2 * (shear - np.eye(2))
-        return _turn(0.5 * math.pi * (t - 0.2) / 0.8) @ shear
-
-    solver = Solver(macro, SerialFarm(models), _all_nodes(macro, path))
+    solver = Solver(macro, SerialFarm(models), _all_nodes(macro, _shear_then_turn))
     for k in range(12):
         solver.advance(0.2 / 2 if k < 2 else 0.08)
         if k == 1:

@@ -118,7 +118,7 @@ class Output:
         pts = np.zeros((mesh.p.shape[1], 3))
         pts[:, :macro.dim] = mesh.p.T
         cells = mesh.t.T.astype(np.int64)
-        if macro.element == "hex1":
+        if macro.element.startswith("hex"):  # the vertices, in VTK's order
             cells = cells[:, _HEX_ORDER]
         self.f.create_dataset("mesh/points", data=pts)
         self.f.create_dataset("mesh/cells", data=cells)

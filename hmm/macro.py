@@ -33,10 +33,13 @@ from skfem import (
     Basis,
     BilinearForm,
     ElementHex1,
+    ElementHex2,
+    ElementHexS2,
     ElementQuad1,
     ElementQuad2,
     ElementQuadS2,
     ElementTetP1,
+    ElementTetP2,
     ElementTriP1,
     ElementTriP2,
     ElementVector,
@@ -55,7 +58,9 @@ from .tensors import log_strain, spatial_tangent
 #: element name -> (mesh class, element class, quadrature order): 2x2 Gauss points
 #: on bilinear quadrilaterals, 3x3 on biquadratic (9-node) ones, 2x2 on 8-node
 #: serendipity ones (reduced integration, as YADE's FEMxDEM), 1 / 3 on linear /
-#: quadratic triangles, 2x2x2 on trilinear hexahedra, 1 on linear tetrahedra
+#: quadratic triangles, 2x2x2 on trilinear hexahedra and on 20-node serendipity ones
+#: (reduced, as YADE's FEMxDEM), 3x3x3 on triquadratic (27-node) ones, 1 on linear
+#: tetrahedra and 4 on quadratic (10-node) ones
 ELEMENTS = {
     "quad1": (MeshQuad, ElementQuad1, 3),
     "quad2": (MeshQuad, ElementQuad2, 5),
@@ -64,7 +69,15 @@ ELEMENTS = {
     "tri2": (MeshTri, ElementTriP2, 2),
     "hex1": (MeshHex, ElementHex1, 3),
     "tet1": (MeshTet, ElementTetP1, 1),
+    "hex20": (MeshHex, ElementHexS2, 3),
+    "hex27": (MeshHex, ElementHex2, 5),
+    "tet10": (MeshTet, ElementTetP2, 2),
 }
+
+#: quadratic quadrilaterals and hexahedra: the quadrature order of reduced (2 points
+#: per axis) and full (3) integration; the default is the one in :data:`ELEMENTS`
+INTEGRATION = {name: {"reduced": 3, "full": 5}
+               for name in ("quad2", "quad8", "hex20", "hex27")}
 
 
 @BilinearForm
@@ -165,9 +178,14 @@ class Macro:
         One of :data:`ELEMENTS`.
     kinematics : str
         ``"small"`` or ``"finite"`` (see the module docstring).
+    integration : str, optional
+        ``"reduced"`` (2 Gauss points per axis) or ``"full"`` (3) for the quadratic
+        quadrilaterals and hexahedra (:data:`INTEGRATION`); None: the element's
+        default (:data:`ELEMENTS`: reduced for quad8 and hex20, full for quad2 and
+        hex27).
     """
 
-    def __init__(self, mesh, element="quad1", kinematics="small"):
+    def __init__(self, mesh, element="quad1", kinematics="small", integration=None):
         if element not in ELEMENTS:
             raise ValueError(f"element must be one of {', '.join(ELEMENTS)}, got {element!r}")
         if kinematics not in KINEMATICS:
@@ -176,6 +194,14 @@ class Macro:
         self.kinematics = kinematics
         self.finite = kinematics == "finite"
         mesh_cls, elem_cls, order = ELEMENTS[element]
+        if integration is not None:
+            if element not in INTEGRATION:
+                raise ValueError(f"integration applies to {', '.join(INTEGRATION)}, "
+                                 f"not to {element!r}")
+            if integration not in INTEGRATION[element]:
+                raise ValueError(f"integration must be \"reduced\" or \"full\", got "
+                                 f"{integration!r}")
+            order = INTEGRATION[element][integration]
         if not isinstance(mesh, mesh_cls):
             raise TypeError(f"element {element!r} needs a {mesh_cls.__name__}, "
                              f"got a {type(mesh).__name__}")

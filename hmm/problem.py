@@ -4,7 +4,9 @@ Layout (SI units; ``d`` is ``[mesh] dim``)::
 
     [mesh]
     dim = 2                        # 2 (plane strain) or 3
-    element = "quad1"              # quad1 quad2 quad8 tri1 tri2 (2D), hex1 tet1 (3D)
+    element = "quad1"              # 2D: quad1 quad2 quad8 tri1 tri2
+                                   # 3D: hex1 hex20 hex27 tet1 tet10
+    integration = "reduced"        # quad2 quad8 hex20 hex27: 2 (or "full": 3) points/axis
     size = [0.05, 0.1]             # [m] rectangle / box [0, size]
     cells = [2, 4]                 # elements per axis
     file = "mesh.msh"              # instead of size/cells: any mesh scikit-fem reads
@@ -87,7 +89,9 @@ NONNEGATIVE = Range(0.0)
 COMPONENTS = ("x", "y", "z")
 #: element names of 2D and 3D meshes (hmm.macro.ELEMENTS gives their classes)
 ELEMENTS_2D = ("quad1", "quad2", "quad8", "tri1", "tri2")
-ELEMENTS_3D = ("hex1", "tet1")
+ELEMENTS_3D = ("hex1", "hex20", "hex27", "tet1", "tet10")
+#: elements whose Gauss rule [mesh] integration chooses (hmm.macro.INTEGRATION)
+QUADRATURE_CHOICE = ("quad2", "quad8", "hex20", "hex27")
 #: most elements of a structured mesh ([mesh] size and cells); each has Gauss points
 MAX_ELEMENTS = 10**6
 #: micro models of [micro] model; the analytic ones take young and poisson
@@ -104,7 +108,12 @@ SCHEMA = {
         "element": Key("str", default="quad1",
                        choices=ELEMENTS_2D + ELEMENTS_3D,
                        doc="Element type (2D: quad1 quad2 quad8 tri1 tri2; 3D: hex1 "
-                           "tet1)."),
+                           "hex20 hex27 tet1 tet10)."),
+        "integration": Key("str", choices=("reduced", "full"),
+                           doc="Quadratic quadrilaterals and hexahedra (quad2 quad8 "
+                               "hex20 hex27): 2 (reduced) or 3 (full) Gauss points per "
+                               "axis; default reduced for quad8 and hex20, full for "
+                               "quad2 and hex27."),
         "size": Key("vector", "m", range=POSITIVE,
                     doc="Edge lengths of the rectangle/box [0, size]."),
         "cells": Key("vector", range=Range(1.0), doc="Elements along each axis."),
@@ -314,6 +323,9 @@ def validate_problem(data, source="<problem>", base_dir="."):
         ctx.fail("takes a mesh file or size and cells, not both", "[mesh]")
     if (m["element"] in ELEMENTS_2D) != (m["dim"] == 2):
         ctx.fail(f"element \"{m['element']}\" does not fit dim = {m['dim']}", "[mesh]")
+    if m["integration"] is not None and m["element"] not in QUADRATURE_CHOICE:
+        ctx.fail(f"integration applies to {', '.join(QUADRATURE_CHOICE)}, not to "
+                 f"element \"{m['element']}\"", "[mesh]")
     for i, c in enumerate(out["dirichlet"]):
         if (c["boundary"] is None) == (c["point"] is None):
             ctx.fail("needs a boundary or a point (one of them)", f"[[dirichlet]] #{i + 1}")
@@ -380,7 +392,7 @@ def build_macro(problem):
                 raise SceneError(f"{src}: [[{kind}]] #{i + 1} boundary "
                                  f"\"{c['boundary']}\" is not a boundary of the mesh "
                                  f"(known: {', '.join(sorted(known)) or 'none'})")
-    return Macro(mesh, m["element"], problem["solver"]["kinematics"])
+    return Macro(mesh, m["element"], problem["solver"]["kinematics"], m["integration"])
 
 
 def vertex_at(mesh, point):

@@ -33,6 +33,7 @@ HEIGHT = 0.08  # [m] the demo sample's height
 
 
 def worker(args):
+    import copy
     import time
 
     import h5py
@@ -42,12 +43,11 @@ def worker(args):
     from hmm.run import DEMO, run_problem
 
     kinematics, strain, steps = args[0], float(args[1]), int(args[2])
-    raw = {k: (dict(v) if isinstance(v, dict) else v) for k, v in DEMO.items()}
-    raw["dirichlet"] = [dict(d) for d in DEMO["dirichlet"]]
+    raw = copy.deepcopy(DEMO)
     top = next(d for d in raw["dirichlet"] if d["boundary"] == "top")
     top["value"] = -strain * HEIGHT
     raw["load"] = {"steps": steps}
-    raw["solver"] = dict(DEMO["solver"], kinematics=kinematics)
+    raw["solver"]["kinematics"] = kinematics
     out_dir = SCRATCH / f"{kinematics}_{strain}"
     raw["output"] = {"dir": str(out_dir)}
     problem = validate_problem(raw, source="<demo_kinematics>")
@@ -64,7 +64,7 @@ def worker(args):
         iterations = int(f["curve/iterations"][()].sum())
     C.emit_result({"kinematics": kinematics, "strain": strain, "steps": steps,
                    "wall": wall, "solve_time": s.get("solve_time", wall),
-                   "iterations": int(sum(s["iterations"])) if s else iterations, "cuts": s.get("cuts"),
+                   "iterations": iterations, "cuts": s.get("cuts"),
                    "trials": s.get("trials"), "force_top": force,
                    "displacement_top": disp, "stopped": stopped,
                    "reached_strain": -disp[-1] / HEIGHT})

@@ -640,8 +640,10 @@ def test_integration_is_a_choice_of_the_quadratic_quads_and_hexahedra():
     base = {"mesh": {"size": [1.0, 1.0], "cells": [1, 1], "element": "quad8"},
             "dirichlet": [{"boundary": "bottom", "component": "y"}],
             "micro": {"model": "neo_hookean", "young": E, "poisson": NU}}
-    from hmm.problem import build_macro
+    from hmm.macro import INTEGRATION
+    from hmm.problem import QUADRATURE_CHOICE, build_macro
 
+    assert set(QUADRATURE_CHOICE) == set(INTEGRATION)  # the file and the solver agree
     for rule, n in ((None, 4), ("reduced", 4), ("full", 9)):
         prob = {**base, "mesh": {**base["mesh"], "integration": rule}}
         assert build_macro(validate_problem(prob)).n_qp == n

@@ -7,7 +7,7 @@ export NUMBA_CACHE_DIR ?= $(CURDIR)/.numba_cache
 export NUMBA_THREADING_LAYER ?= omp
 export MPLBACKEND ?= Agg
 
-.PHONY: demo test test-shapes test-rest test-mpi docs-walk bench venv clean
+.PHONY: demo lint test test-shapes test-rest test-mpi docs-walk bench venv clean
 
 venv: $(STAMP)
 
@@ -30,7 +30,12 @@ DOC_TESTS := tests/test_doc_pages.py
 DOC_REST := batch or multiscale
 PYTEST := $(BIN)/python -m pytest -q -p no:cacheprovider
 
+# ruff with the rules of pyproject.toml ([tool.ruff]); make test runs it first
+lint: $(STAMP)
+	$(BIN)/ruff check .
+
 test: $(STAMP)
+	$(BIN)/ruff check .
 	$(MAKE) -j2 --output-sync=target test-shapes test-rest
 	$(MAKE) test-mpi
 

@@ -383,7 +383,7 @@ def _plot(results, flow):
     import numpy as np
 
     fig, axes = plt.subplots(1, len(results) + 1, figsize=(4.2 * (len(results) + 1), 3.8))
-    for ax, (name, e) in zip(axes, results.items()):
+    for ax, (name, e) in zip(axes, results.items(), strict=False):
         a = e["admm"]
         ax.loglog([x["warm_s_per_contact"] * 1e6 for x in a],
                   [max(x["warm_force_error_median"], 1e-16) for x in a], "o-",

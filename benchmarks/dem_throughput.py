@@ -33,7 +33,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import _common as C  # noqa: E402
+import _common as C
 
 OUT = C.RESULTS / "dem_throughput.json"
 KNOWN_CODES = ("dem", "lammps", "liggghts", "yade")
@@ -217,7 +217,7 @@ def aggregate(runs, scenes, codes, pars):
                     "cpu_percent": C.median(r.get("cpu_percent") for r in ok),
                     "n_ok": len(ok), "n_failed": len(rs) - len(ok)}
 
-        def med(code, p):
+        def med(code, p, scene=scene):
             return results[scene].get(code, {}).get(str(p), {}).get("median_pps")
 
         per_scene[scene] = {
@@ -349,7 +349,8 @@ def main(argv=None):
                         data["config"]["N"] = data["config"]["N"] or r.get("N")
                         print(f"rep {rep} {scene:8} {code:8} {C._par_label(code, p):15} "
                               f"{r['pps']:.4g} particle-steps/s  wall {r['wall_s']:.2f} s  "
-                              f"Z {r.get('Z') or float('nan'):.3f}  KE {r.get('ke') or float('nan'):.4g}"
+                              f"Z {r.get('Z') or float('nan'):.3f}  "
+                              f"KE {r.get('ke') or float('nan'):.4g}"
                               f"  load {load[0] if load else '?'}", flush=True)
                     else:
                         print(f"rep {rep} {scene:8} {code:8} {C._par_label(code, p):15} "

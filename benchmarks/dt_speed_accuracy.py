@@ -24,7 +24,7 @@ reported alongside.
 
 usage::
 
-    python benchmarks/dt_speed_accuracy.py             # run, write results/dt_speed_accuracy.{json,png}
+    python benchmarks/dt_speed_accuracy.py             # run: results/dt_speed_accuracy.{json,png}
     python benchmarks/dt_speed_accuracy.py --markdown  # print the docs table from the JSON
 
 environment: DT_NSTEPS (300 timed steps), DT_NPRE (100 untimed), DT_REPS (1),
@@ -41,7 +41,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import _common as C  # noqa: E402
+import _common as C
 
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")  # the collisions: two bodies, one thread
 os.environ.setdefault("NUMBA_THREADING_LAYER", "omp")
@@ -179,7 +179,8 @@ def cost(factors, reps):
             if r.get("ok"):
                 print(f"  dt/dt_crit = {f:<5g} {r['wall_per_sim_s']:8.1f} wall s "
                       f"({r['cpu_per_sim_s']:.1f} CPU s) per simulated s"
-                      f"  ({r['pps']:.3g} particle-steps/s, CPU {100 * r['cpu_s'] / r['wall_s']:.0f}%,"
+                      f"  ({r['pps']:.3g} particle-steps/s, "
+                      f"CPU {100 * r['cpu_s'] / r['wall_s']:.0f}%,"
                       f" KE {r['ke']:.3g} J, Z {r['Z']:.3f})", flush=True)
             else:
                 print(f"  dt/dt_crit = {f:<5g} FAILED: {r['error']}", flush=True)
@@ -205,7 +206,8 @@ def plot(data, path):
     for (key, label, mk), col in zip((("duration", "contact duration (elastic)", "o"),
                                       ("restitution", "restitution (e = 0.5)", "s"),
                                       ("energy", "energy (elastic)", "^")),
-                                     ("tab:blue", "tab:orange", "tab:green")):
+                                     ("tab:blue", "tab:orange", "tab:green"),
+                                     strict=True):
         ax1.loglog(f, [max(r[f"err_{key}"], floor) for r in grid], marker=mk, color=col,
                    label=label + ", worst phase")
         ax1.loglog(f, [max(r[f"bias_{key}"], floor) for r in grid], ls=":", color=col,

@@ -84,9 +84,9 @@ def assembly_cost(sizes, reps=5):
         idx = [(0, 0), (1, 1), (0, 1)]
         spd = np.einsum("gij,gkj->gik", a, a) + 3 * np.eye(3)
         for p, (i, j) in enumerate(idx):
-            for q, (k, l) in enumerate(idx):
+            for q, (k, m) in enumerate(idx):
                 for ii, jj in {(i, j), (j, i)}:
-                    for kk, ll in {(k, l), (l, k)}:
+                    for kk, ll in {(k, m), (m, k)}:
                         c[:, ii, jj, kk, ll] = spd[:, p, q]
         sig = rng.normal(size=(macro.n_gp, 2, 2))
         sig = 0.5 * (sig + sig.transpose(0, 2, 1))

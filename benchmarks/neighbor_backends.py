@@ -15,7 +15,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 
-import _common as C  # noqa: E402
+import _common as C
 
 OUT = C.REPO / "benchmarks" / "results" / "neighbor_backends.json"
 

@@ -50,7 +50,7 @@ def measure(size, factors, cap):
     deps = np.diag([0.0, 0.0, -2e-3])
     rows = []
     for name, law in laws.items():
-        def box(dt=None):
+        def box(dt=None, law=law):
             return BoxRVE(dem.Bodies.spheres(pos, radius=r, density=1e-3), law,
                           lo=[0.0, 0.0, 0.0], hi=hi, damping=0.5, dt=dt,
                           max_relax_steps=cap)

@@ -15,8 +15,9 @@ with the same algorithm (same chunk of 50 steps between checks, same servo gain 
 the contact-stiffness tangent, same tolerances). Measured: the largest difference of
 the deviatoric stress q up to our peak of q, relative to that peak
 (``max_rel_deviation_2d``, the largest over the packings; the target is 3 %), and the
-same for p, q/p and the volumetric strain. Both engines start from bit-identical contact forces (checked: the
-stress of the exported state agrees to 1e-9); past the first contact slips the two
+same for p, q/p and the volumetric strain. Both engines start from bit-identical
+contact forces (checked: the stress of the exported state agrees to 1e-9); past the
+first contact slips the two
 trajectories part as any two chaotic runs do, and the number says how far.
 
 Matching the physics:

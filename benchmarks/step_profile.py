@@ -18,7 +18,7 @@ from pathlib import Path
 os.environ.setdefault("NUMBA_NUM_THREADS", "1")
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-import _common as C  # noqa: E402
+import _common as C
 
 OUT = C.REPO / "benchmarks" / "results" / "step_profile.json"
 STATE = ("pos", "vel", "rot", "ang_vel", "force", "torque")

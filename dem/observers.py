@@ -370,7 +370,7 @@ class EnergyTracker(_Series):
         if self._e0 is None:
             self._e0 = (total, work)
         diss = (work - self._e0[1]) - (total - self._e0[0])
-        for k, v in zip(self.KEYS, (tr, ro, el, pot, work, diss)):
+        for k, v in zip(self.KEYS, (tr, ro, el, pot, work, diss), strict=True):
             self.data[k].append(v)
 
     def as_arrays(self):

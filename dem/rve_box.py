@@ -276,8 +276,9 @@ check_every, threads
         ``"perturbation"``: an axial probe ``probe`` per axis from the current state,
         relaxed, the wall-stress difference divided by it, the state restored after
         each; the box has no shear mode, so only the columns ``C_ijkk`` are measured
-        and ``C_ijkl`` with ``k != l`` is zero. ``direction`` (d, d) gives each probe the sign of its
-        diagonal component (the loading branch), as for :meth:`dem.rve.RVE.tangent`.
+        and ``C_ijkl`` with ``k != l`` is zero. ``direction`` (d, d) gives each probe the
+        sign of its diagonal component (the loading branch), as for
+        :meth:`dem.rve.RVE.tangent`.
         """
         if method == "contact":
             return self.response(tangent=True)["tangent"]

@@ -347,7 +347,8 @@ class Simulation:
             self.damping, nl.skin, self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel,
             b.force, b.torque, b.radius, b.mass, self._inv_mass, self._inv_inertia,
             self._fixed, b.normal, b.mat_id, nl.pos_ref, self._grow(), self._hmat,
-            self._lgrad, self._cellref, self.cell is not None, nl.pairs, nl.img, self.touch, self.hist, self.fpair, self._contrib,
+            self._lgrad, self._cellref, self.cell is not None, nl.pairs, nl.img, self.touch,
+            self.hist, self.fpair, self._contrib,
             self._slot, self._inc_start, self._blk_start, self._params_pp, self._inner,
             self._n_inner,
             self._pos_inner, INNER_SKIN * nl.skin, nl.wall_pairs, self.whist,
@@ -529,7 +530,7 @@ class Simulation:
         eoff, eq, eprad = np.zeros((ne, 3)), np.zeros((ne, 4)), np.full(ne, -1.0)
         if d == 3:
             eq[:, 0] = 1.0
-        for body, s in zip(comp, rows):
+        for body, s in zip(comp, rows, strict=True):
             e = slice(self._estart[body], self._estart[body + 1])
             pool = slice(t.cstart[s], t.cstart[s + 1])
             self._ekind[e] = t.part_kind[pool]
@@ -724,7 +725,8 @@ class Simulation:
 
     # ------------------------------------------------------------------ contact data
     def contacts(self):
-        """Touching contacts now, as a dict of arrays (see :func:`dem.observers.contact_summary`)."""
+        """Touching contacts now, as a dict of arrays (see
+        :func:`dem.observers.contact_summary`)."""
         from .observers import contact_summary
 
         self.prime()

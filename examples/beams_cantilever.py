@@ -55,7 +55,7 @@ def visualize(tables):
     fig, ax = plt.subplots(figsize=(5.5, 4.0))
     ns = np.array(sorted(next(iter(tables[2].values()))))
     for dim, fill in ((2, None), (3, "none")):
-        for (young, errors), marker in zip(tables[dim].items(), "osd^"):
+        for (young, errors), marker in zip(tables[dim].items(), "osd^", strict=False):
             ax.loglog(ns, [errors[n] for n in ns], marker, mfc=fill,
                       ms=5 if fill is None else 9,
                       label=f"{dim}D, E = {young:.0e} Pa")

@@ -83,7 +83,7 @@ def visualize(table):
         ax.loglog(bodies, [abs(rows[n]["timoshenko"]) for n in ns], marker=style,
                   mfc="none", ls="--", color=f"C{color}",
                   label=f"{label}, vs EB + shear")
-        for n, b in zip(ns, bodies):
+        for n, b in zip(ns, bodies, strict=True):
             ax.annotate(f"{n}x{n}", (b, abs(rows[n]["eb"])), fontsize=7,
                         textcoords="offset points", xytext=(3, 3))
     ax.set_xlabel("bodies")

@@ -139,7 +139,7 @@ def visualize():
     ax.add_collection(PatchCollection(
         [Circle(x, R0) for x in pos0], facecolor="none", edgecolor="0.6",
         linestyle="--", linewidth=0.8))
-    disks = PatchCollection([Circle(x, r) for x, r in zip(final, radii)],
+    disks = PatchCollection([Circle(x, r) for x, r in zip(final, radii, strict=True)],
                             cmap="viridis", edgecolor="k", linewidth=0.6, alpha=0.85)
     disks.set_array(u_norm)
     ax.add_collection(disks)

@@ -93,7 +93,8 @@ def compress(bodies, lid, area, box=None):
                          observers=[stress_log, wall_log, lid_log])
     sim.run(n_steps)
     height = np.array(lid_log.values)
-    forces = dict(zip(walls.tolist(), np.moveaxis(np.array(wall_log.values), 1, 0)))
+    forces = dict(zip(walls.tolist(), np.moveaxis(np.array(wall_log.values), 1, 0),
+                      strict=True))
     return sim, (h0 - height) / h0, height, np.array(stress_log.stress), forces
 
 

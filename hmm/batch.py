@@ -3,8 +3,9 @@
 ``mpiexec -n N hmm batch sweep.toml`` (:func:`hmm.cli.cmd_batch`). A sweep file holds a
 ``[base]`` experiment (the sections of an ``hmm rve`` file: ``packing``, ``contact``,
 ``test``) and a ``[sweep]`` of variations of it: a ``grid`` (key path -> values, the
-Cartesian product) or a ``list`` of override tables. Every experiment is validated against :data:`hmm.experiment.RVE_SCHEMA` before anything
-runs and gets a stable id, its index and a hash of its overrides (``003-1a2b3c4d``).
+Cartesian product) or a ``list`` of override tables. Every experiment is validated
+against :data:`hmm.experiment.RVE_SCHEMA` before anything runs and gets a stable id,
+its index and a hash of its overrides (``003-1a2b3c4d``).
 
 The experiments run through the master-worker queue of :mod:`hmm.queue`, which
 records each in ``batch.h5`` (:class:`Store`) as it ends and writes ``summary.csv``
@@ -199,7 +200,8 @@ def _combinations(sweep, source):
                 raise SceneError(f"{where} grid: '{path}' must be a non-empty array of "
                                  f"values")
         paths = list(grid)
-        return [dict(zip(paths, combo)) for combo in itertools.product(*grid.values())]
+        return [dict(zip(paths, combo, strict=True))
+                for combo in itertools.product(*grid.values())]
     entries = sweep["list"]
     if not isinstance(entries, list) or not entries or not all(
             isinstance(e, dict) for e in entries):

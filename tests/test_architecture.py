@@ -145,7 +145,7 @@ def find_cycles(graph):
 def describe(cycle, graph, files):
     """``a (a.py:12) -> b (b.py:40) -> a``: each step with the line of its import."""
     steps = [f"{a} ({files[a].relative_to(ROOT)}:{graph[a][b]})"
-             for a, b in zip(cycle, cycle[1:])]
+             for a, b in zip(cycle, cycle[1:], strict=False)]
     return " -> ".join(steps + [cycle[-1]])
 
 

@@ -131,7 +131,7 @@ def lattice_matrices(dim, kn, kt):
             return np.array([[-v[1]], [v[0]]])
         return -np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
-    for i, j in zip(*np.triu_indices(len(pts), 1)):
+    for i, j in zip(*np.triu_indices(len(pts), 1), strict=True):
         d = pts[j] - pts[i]
         d -= np.round(d / length) * length
         if abs(np.linalg.norm(d) - 2.0 * r) > 1e-9:

@@ -4,10 +4,10 @@ A law kernel takes one contact's summary (overlap ``ov`` > 0, unit normal ``n`` 
 the home body i to the neighbour j), the velocity ``v`` of j relative to i at the contact
 point, the contact's effective radius and mass, the parameter table ``p`` with the
 materials ``a``, ``b`` of the pair (it reads ``p[a, b, :]``: no array view is made in the
-hot loop) and the contact's history row ``hist[k]``, and returns the force on j (i gets the opposite). The
-history row holds the tangential spring (elongation vector, 3 components, [m]); it is
-updated in place and reset by the caller when the contact opens. Vectors are passed as
-three scalars: 2D contacts pass ``z = 0``.
+hot loop) and the contact's history row ``hist[k]``, and returns the force on j (i gets
+the opposite). The history row holds the tangential spring (elongation vector, 3
+components, [m]); it is updated in place and reset by the caller when the contact
+opens. Vectors are passed as three scalars: 2D contacts pass ``z = 0``.
 
 Tangential history is a time-dependent state: its rate is the tangential relative
 velocity. It is advanced with the relative velocity at mid-step (the velocity Verlet

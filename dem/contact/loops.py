@@ -663,7 +663,8 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
     def run_steps(n_steps, prime, resume, serial, dt, gravity, damping, skin, overlap_limit,
                   pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass,
                   inv_inertia, is_fixed, normal, mat_id, pos_ref, grow, hmat, lgrad,
-                  cellref, is_cell, pairs, img, touch, hist, fpair, contrib, slot, inc_start, blk_start,
+                  cellref, is_cell, pairs, img, touch, hist, fpair, contrib, slot, inc_start,
+                  blk_start,
                   params_pp, inner, n_inner, pos_inner, skin_inner,
                   wpairs, whist, wforce, wtorque, wstart, params_pw,
                   status_out, work_out):

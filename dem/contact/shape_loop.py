@@ -215,8 +215,9 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
     ``methods``/``wall_methods`` are the detection methods of the pair buckets and the
     wall buckets present (``method_for``); the closed forms and the polytope solver are
     always compiled in, ADMM only when a bucket uses it (so one cached loop per
-    dimension and laws serves every scene without ADMM). ``custom_sdf`` is the user's SDF of a scene with a custom shape (such
-    loops are compiled for the function and not cached on disk).
+    dimension and laws serves every scene without ADMM). ``custom_sdf`` is the user's SDF
+    of a scene with a custom shape (such loops are compiled for the function and not
+    cached on disk).
     """
     # the closed forms and the polytope solver are always compiled in (one loop per
     # dimension serves every scene without custom shapes); ADMM only where used

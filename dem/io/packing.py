@@ -127,7 +127,8 @@ def random_packing(lo, hi, radius, rng, attempts_per_particle=200):
             budget -= 1
             c = tuple(int(v) for v in np.floor(x / cell))
             near = [j for o in offsets
-                    for j in grid.get(tuple(a + b - 1 for a, b in zip(c, o)), ())]
+                    for j in grid.get(tuple(a + b - 1
+                                            for a, b in zip(c, o, strict=True)), ())]
             if near:
                 dist = np.linalg.norm(pos[near] - x, axis=1)
                 if np.any(dist < radius[near] + r):
@@ -154,9 +155,9 @@ def read_packing(path, dim):
         with open(path, encoding="utf-8") as f:
             rows = np.loadtxt(f, ndmin=2, comments="#")
     except OSError as exc:
-        raise ValueError(f"file: cannot read {path}: {_reason(exc)}")
+        raise ValueError(f"file: cannot read {path}: {_reason(exc)}") from exc
     except ValueError as exc:
-        raise ValueError(f"file: {path}: {_reason(exc)}")
+        raise ValueError(f"file: {path}: {_reason(exc)}") from exc
     ncol = dim + 1
     if rows.shape[0] == 0:
         raise ValueError(f"file: {path} holds no particles")

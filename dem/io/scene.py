@@ -466,7 +466,7 @@ def _number(ctx, where, key, spec, value, expected=None):
 def _cross_checks(ctx, scene):
     p = scene["particles"]
     if p["generator"] in ("lattice", "random"):
-        for a, (lo, hi) in enumerate(zip(p["lo"], p["hi"])):
+        for a, (lo, hi) in enumerate(zip(p["lo"], p["hi"], strict=True)):
             if not lo < hi:
                 ctx.fail(f"needs lo < hi on every axis, got lo[{a}] = {_fmt(lo)}, "
                          f"hi[{a}] = {_fmt(hi)}", "[particles]")

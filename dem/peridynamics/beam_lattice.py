@@ -195,7 +195,7 @@ def lattice_cantilever(n_x, n_y, n_z, length, height, width, E, density, radius=
         area = eb * ec
         moments = np.column_stack([eb * ec**3 / 12.0, ec * eb**3 / 12.0,
                                    [rectangle_torsion_constant(a, b)
-                                    for a, b in zip(eb, ec)]])
+                                    for a, b in zip(eb, ec, strict=True)]])
     else:
         ratio = radius / s
         if ratio < 1.0 - _TOL:

@@ -44,8 +44,9 @@ def bond_pass(pos, start, nbr, length, omega, vol, qw, pw, params, broken, theta
 
     ``theta_i = sum_j w |xi| e V_j q_j`` and ``S_i = sum_j w e^d |xi| V_j``, with the
     per-bond weights ``q = d / m_i`` (or its surface-corrected value) and ``p = 1 / m_i``
-    (``S_i`` is zero without the correction). Both directions of a bond see the same stretch bit for bit, so they
-    break in the same pass. Modified in place: ``broken``, ``theta_out``, ``sdev_out``.
+    (``S_i`` is zero without the correction). Both directions of a bond see the same
+    stretch bit for bit, so they break in the same pass. Modified in place: ``broken``,
+    ``theta_out``, ``sdev_out``.
     """
     n, d = pos.shape
     s_crit = params[P_SCRIT]
@@ -228,10 +229,11 @@ def step_chunk(n_steps, t0, dt, damping, pos, vel, radius, mass, fixed, start, n
     Per step: half kick with the force of the last step, drift (fixed bodies move with
     their prescribed velocity), forces at the new positions (bond breaking, dilation,
     bond forces, contact, body force times its profile at the new time, gravity), second
-    half kick; with ``damping``, both kicks use Cundall's local damping. A step after which a body has moved more than
-    ``half_skin`` since the contact list was built ends the chunk with ``REBUILD`` (the
-    step itself is complete); a non-finite state, or a body that moves more than its
-    radius in one step (a run blowing up), ends it with ``NONFINITE``.
+    half kick; with ``damping``, both kicks use Cundall's local damping. A step after
+    which a body has moved more than ``half_skin`` since the contact list was built
+    ends the chunk with ``REBUILD`` (the step itself is complete); a non-finite state,
+    or a body that moves more than its radius in one step (a run blowing up), ends it
+    with ``NONFINITE``.
     """
     n, d = pos.shape
     status[0] = OK

@@ -229,7 +229,8 @@ class PDSimulation:
             out[:] = 0.0
             forces(x0 + eps * scale * v, b.radius, f.start, f.nbr, f.twin, f.length, self.omega,
                    self.vol, self.qw, self.pw, self.corr, theta, np.zeros(b.n), params,
-                   np.zeros_like(f.broken), nothing, np.zeros(0, np.int64), b.normal, 0.0, np.zeros_like(x0), 0.0,
+                   np.zeros_like(f.broken), nothing, np.zeros(0, np.int64), b.normal, 0.0,
+                   np.zeros_like(x0), 0.0,
                    np.zeros(self.dim), b.mass, np.ones(b.n, np.uint8), out)
             w = -scale * out / eps
             lam_old, lam = lam, float((w * v).sum() / (v * v).sum())
@@ -308,7 +309,8 @@ class PDSimulation:
                     if self._status[0] == NONFINITE:
                         raise SimulationError(
                             f"non-finite or runaway motion of body {self._status[1]} (more "
-                            f"than its radius in one step) at step {self.step}: the run blew up (dt = {self.dt:.4g} s, "
+                            f"than its radius in one step) at step {self.step}: the run "
+                            f"blew up (dt = {self.dt:.4g} s, "
                             f"critical step {self.dt_crit:.4g} s)")
                     if self._status[0] == REBUILD:
                         self._rebuild()

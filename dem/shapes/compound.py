@@ -174,7 +174,7 @@ class Compound:
         """(volume, first moment, inertia about the origin) of the members'
         intersection, or None if it is empty."""
         d = self.dim
-        normals, offsets = zip(*(self._halfspaces(k) for k in members))
+        normals, offsets = zip(*(self._halfspaces(k) for k in members), strict=True)
         a, b = np.vstack(normals), np.concatenate(offsets)
         size = max(self.parts[k][0].bounding_radius for k in members)
         lp = linprog(np.r_[np.zeros(d), -1.0],

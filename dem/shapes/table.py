@@ -105,7 +105,7 @@ class ShapeTable:
                               np.r_[q, np.zeros(4 - q.size)], part.bounding_radius))
         self.cstart = np.append(self.cstart, self.cstart[-1] + len(parts))
         if parts:
-            kinds, prow, off, q, rad = zip(*parts)
+            kinds, prow, off, q, rad = zip(*parts, strict=True)
             self.part_kind = np.append(self.part_kind, np.array(kinds, np.int64))
             self.part_row = np.append(self.part_row, np.array(prow, np.int64))
             self.part_off = np.ascontiguousarray(np.vstack([self.part_off, off]))

@@ -64,7 +64,7 @@ def turn(bodies, b, v):
 
 def generalized_forces(bonds, bodies):
     force, torque, energy = bonds.forces(bodies)
-    rows = [np.concatenate([f, t]) for f, t in zip(force, torque)]
+    rows = [np.concatenate([f, t]) for f, t in zip(force, torque, strict=True)]
     return np.concatenate(rows), energy
 
 

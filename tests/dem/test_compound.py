@@ -116,7 +116,7 @@ def test_spheres_that_overlap_nothing_are_exact():
     offsets = np.array([[0.0, 0.0, 0.0], [d, 0.0, 0.0], [0.5, 2.0, 0.0]]) - c
     own = [0.4 * vs * r * r * np.eye(3)] * 2 + [vb * 0.02 / 3.0 * np.eye(3)]
     expected = sum(i0 + mk * (o @ o * np.eye(3) - np.outer(o, o))
-                   for i0, mk, o in zip(own, [vs, vs, vb], offsets))
+                   for i0, mk, o in zip(own, [vs, vs, vb], offsets, strict=True))
     assert np.allclose(inertia, expected, rtol=1e-12, atol=1e-14)
 
 
@@ -213,7 +213,7 @@ def test_a_compound_of_one_part_is_that_part(dim):
         assert touched > 20
         runs.append((b.pos.copy(), b.rot.copy(), b.vel.copy(), sim.hist.copy(),
                      sim.whist.copy()))
-    for a, c in zip(*runs):
+    for a, c in zip(*runs, strict=True):
         assert np.array_equal(a, c)
 
 
@@ -275,7 +275,7 @@ def test_elastic_collision_of_two_compounds_conserves():
         sim.run(25)
         c = sim.contacts()
         touched.update(zip(c["i"], c["j"], sim._parts[sim.pgeom[:, 0] > 0.0, 0],
-                           sim._parts[sim.pgeom[:, 0] > 0.0, 1]))
+                           sim._parts[sim.pgeom[:, 0] > 0.0, 1], strict=True))
     assert len(touched) >= 2, f"parts that met: {touched}"
     assert len(sim.contacts()["i"]) == 0, "still in contact at the end"
     scale = np.sum(b.mass * np.linalg.norm(b.vel, axis=1))
@@ -358,7 +358,7 @@ def test_checkpoint_restart_of_compounds_is_bit_for_bit(tmp_path):
         sim.run(100)
         again.run(100)
         c = sim.contacts()
-        shared += len(c["i"]) - len(set(zip(c["i"], c["j"])))
+        shared += len(c["i"]) - len(set(zip(c["i"], c["j"], strict=True)))
     assert shared > 5
     for name in ("pos", "vel", "rot", "ang_vel"):
         assert np.array_equal(getattr(sim.bodies, name), getattr(again.bodies, name))

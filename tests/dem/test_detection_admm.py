@@ -254,7 +254,7 @@ def test_agrees_with_the_polytope_solver_on_corner_contacts():
         pytest.skip("no polytope_contact")
     exact = _exact_kernel(polytope.polytope_contact)
     compared = 0
-    for name, dim, kind, row_a, row_b in polytope_cases():
+    for _name, dim, kind, row_a, row_b in polytope_cases():
         rng = np.random.default_rng(4)
         geo = table(row_a, row_b).arrays()
         for _ in range(12):

@@ -60,7 +60,8 @@ def polyhedron_rows(p):
     v = p[hull.vertices]
     index = {j: i for i, j in enumerate(hull.vertices)}
     tris = np.array([[index[j] for j in s] for s in hull.simplices])
-    for t, eq in zip(tris, hull.equations):  # counter-clockwise seen from outside
+    # each triangle counter-clockwise seen from outside
+    for t, eq in zip(tris, hull.equations, strict=True):
         if np.cross(v[t[1]] - v[t[0]], v[t[2]] - v[t[0]]) @ eq[:3] < 0:
             t[[1, 2]] = t[[2, 1]]
     keep = np.unique(np.round(hull.equations, 9), axis=0, return_index=True)[1]
@@ -403,7 +404,7 @@ def corners_ref(va, fa, vb, fb):
             w = depth_ref(v, f)
             g = f[np.argmax(v @ f[:, :2].T - f[:, 2], axis=1), :2]
         elif arcs:
-            w, g, v = (np.array(x) for x in zip(*arcs))
+            w, g, v = (np.array(x) for x in zip(*arcs, strict=True))
         else:
             continue
         inside += np.count_nonzero(w)

@@ -99,7 +99,7 @@ def scene(dim, seed=0):
         rot = rng.uniform(-np.pi, np.pi, 2) if dim == 2 else random_quats(rng, 2)
         ids = b.add_shapes(shape, pos, density=2500.0, rot=rot,
                            vel=rng.normal(0.0, 0.1, (2, dim)))
-        placed += list(zip(ids.tolist(), [shape] * 2, pos, rot))
+        placed += list(zip(ids.tolist(), [shape] * 2, pos, rot, strict=True))
     b.add_plane(np.zeros(dim), np.eye(dim)[-1])
     if dim == 2:  # no vertices: a particle (glyph), not a surface
         b.add_shapes(CustomShape(_ellipse, 0.02, dim=2, params=[0.02, 0.01],
@@ -230,7 +230,7 @@ def test_xdmf_has_a_shapes_grid(written):
     assert all(s.get("CollectionType") == "Temporal" for s in series)
     particles, shapes = (s.findall("Grid") for s in series)
     assert len(particles) == len(shapes) == 2
-    for index, (pg, sg) in enumerate(zip(particles, shapes)):
+    for index, (pg, sg) in enumerate(zip(particles, shapes, strict=True)):
         frame = read_frame(written["path"], index)
         assert float(sg.find("Time").get("Value")) == frame["time"]
         assert float(pg.find("Time").get("Value")) == frame["time"]

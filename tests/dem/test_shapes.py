@@ -60,7 +60,7 @@ def random_polyhedron(rng, n=25):
 def boundary_samples_2d(vertices, spacing):
     """Points along the edges of a closed polygon, no farther than ``spacing`` apart."""
     pts = []
-    for a, b in zip(vertices, np.roll(vertices, -1, axis=0)):
+    for a, b in zip(vertices, np.roll(vertices, -1, axis=0), strict=True):
         n = int(np.ceil(np.linalg.norm(b - a) / spacing))
         t = np.arange(n)[:, None] / n
         pts.append(a + t * (b - a))

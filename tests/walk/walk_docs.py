@@ -8,7 +8,7 @@ from pathlib import Path
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
-from docwalk import blocks, pages, tier, walk  # noqa: E402
+from docwalk import blocks, pages, tier, walk
 
 LONG = [p for p in pages() if any(tier(c) == "full" for b in blocks(p)
                                   for c in b.commands())]

@@ -63,6 +63,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/step_profile.py
 	$(BIN)/python benchmarks/contact_speed_accuracy.py
 	$(BIN)/python benchmarks/shape_throughput.py
+	$(BIN)/python benchmarks/porous_verification.py
+	$(BIN)/python benchmarks/porous_coupling.py
 	$(BIN)/python benchmarks/shape_limits.py
 	$(BIN)/python benchmarks/rve_call.py
 	$(BIN)/python benchmarks/mpi_scaling.py

@@ -52,6 +52,8 @@ def save(path, problem, step, solver, curve, micro_states):
             g.create_dataset("u", data=solver.u)
             g.create_dataset("sigma", data=solver.sigma)
             g.create_dataset("tangent", data=solver.tangent)
+            if getattr(solver, "p", None) is not None:  # a saturated problem
+                g.create_dataset("p", data=solver.p)
             g.create_dataset("iterations", data=np.asarray(solver.iterations, np.int64))
             for k, v in curve.items():
                 f.create_dataset(f"curve/{k}", data=np.asarray(v, dtype=np.float64))
@@ -106,9 +108,11 @@ class Checkpoint:
                              f"problem")
         self.step = int(step)
 
-    def check(self, macro, curve_names):
-        """Read and check the solver state and the curve against ``macro`` (before
-        anything is restored or an output file changed); ValueError if unusable."""
+    def check(self, macro, curve_names, porous=None, schedule=None):
+        """Read and check the solver state and the curve against ``macro`` (and the
+        pressure field ``porous`` with its time ``schedule``, a saturated problem)
+        before anything is restored or an output file changed; ValueError if
+        unusable."""
         try:
             g = self.f["solver"]
             n, gp, d = macro.n_dofs, macro.n_gp, macro.dim
@@ -116,11 +120,15 @@ class Checkpoint:
             for name, shape in (("u", (n,)), ("sigma", (gp, d, d)),
                                 ("tangent", (gp, d, d, d, d))):
                 solver[name] = self._array(g, name, shape, "f")
+            if porous is not None:
+                solver["p"] = self._array(g, "p", (porous.n_p,), "f")
             solver["iterations"] = self._array(g, "iterations", None, "iu").ravel()
             for name, kind in (("t", float), ("cuts", int), ("trials", int)):
                 solver[name] = kind(g.attrs[name])
-            if not 0.0 <= solver["t"] <= 1.0:
-                raise ValueError(f"solver load factor {solver['t']} is outside [0, 1]")
+            end = 1.0 if schedule is None else schedule.end
+            if not 0.0 <= solver["t"] <= end * (1.0 + 1e-12):
+                what = "load factor" if schedule is None else "time [s]"
+                raise ValueError(f"solver {what} {solver['t']} is outside [0, {end:g}]")
             curve = {}
             for name in curve_names:
                 curve[name] = self._array(self.f["curve"], name, None, "fiu")
@@ -147,6 +155,8 @@ class Checkpoint:
         s = self._solver
         solver.u, solver.sigma, solver.tangent = s["u"], s["sigma"], s["tangent"]
         solver.t, solver.cuts = s["t"], s["cuts"]
+        if "p" in s:
+            solver.p = s["p"]
         solver.iterations = [int(x) for x in s["iterations"]]
         solver.farm.n_trials = s["trials"]
 

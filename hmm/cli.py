@@ -175,6 +175,9 @@ def _solve(problem, args, prog):
           f"{summary['trials']} farm trials; solved in {summary['solve_time']:.1f} s")
     print(f"Gauss points that ran DEM: {summary['dem_points']} of "
           f"{summary['gauss_points']}")
+    if "p" in summary:  # a saturated problem
+        print(f"time {summary['time']:.6g} s, pore pressure {summary['p'].min():.4g} "
+              f"to {summary['p'].max():.4g} Pa")
     for name, f in summary["reactions"].items():
         print(f"reaction on {name}: " + ", ".join(f"{x:.4g}" for x in f) + " N")
     print("output:")

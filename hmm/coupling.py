@@ -37,6 +37,7 @@ import math
 from dataclasses import dataclass, fields
 
 import numpy as np
+from scipy import sparse
 from skfem import condense, solve
 
 from .farm import MicroFailure
@@ -93,6 +94,9 @@ class Supports:
     boundaries: tuple = ()
     #: optional ``path(t)``: the prescribed values at load factor ``t``
     path: object = None
+    #: groups of degrees of freedom that move as one (each a rigid, frictionless
+    #: platen in one component, pushed by the loads on it): no reaction, one unknown
+    ties: tuple = ()
 
     def increment(self, t, h):
         """The change of the prescribed values from load factor ``t`` to ``t + h``."""
@@ -100,6 +104,53 @@ class Supports:
             return h * self.values
         return (np.asarray(self.path(t + h), dtype=np.float64)
                 - np.asarray(self.path(t), dtype=np.float64))
+
+
+def tie_map(n, groups, fixed):
+    """``(T, keep)`` for degrees of freedom ``groups`` that move as one: ``u = T
+    u_r``, ``T`` (n, m) sparse, ``keep`` (m,) the full index of each reduced one
+    (the first of a group stands for it). ``fixed`` dofs may not be tied."""
+    groups = [np.unique(np.asarray(g, dtype=np.int64)) for g in groups]
+    slaves = np.concatenate([g[1:] for g in groups]) if groups else np.zeros(0, int)
+    if np.intersect1d(np.concatenate(groups), fixed).size:
+        raise ValueError("a tied (platen) boundary also has a prescribed displacement "
+                         "in the same component")
+    if np.unique(slaves).size != slaves.size or np.intersect1d(
+            slaves, [g[0] for g in groups]).size:
+        raise ValueError("two platens share a degree of freedom")
+    keep = np.setdiff1d(np.arange(n), slaves)
+    pos = np.full(n, -1)
+    pos[keep] = np.arange(keep.size)
+    rows, cols = keep, np.arange(keep.size)
+    for g in groups:
+        rows = np.concatenate([rows, g[1:]])
+        cols = np.concatenate([cols, np.full(g.size - 1, pos[g[0]])])
+    t = sparse.csr_matrix((np.ones(rows.size), (rows, cols)), shape=(n, keep.size))
+    return t, keep
+
+
+def linear_solve(k, rhs, fixed, x=None, tie=None):
+    """Solve ``k du = rhs`` with ``du`` = ``x`` on the ``fixed`` dofs (zero without
+    ``x``), through the reduced system ``T^T k T`` of a :func:`tie_map`."""
+    if tie is None:
+        return solve(*condense(k, rhs, x=x, D=fixed))
+    t, keep = tie
+    pos = np.full(k.shape[0], -1)
+    pos[keep] = np.arange(keep.size)
+    kr = (t.T @ k @ t).tocsr()
+    xr = None if x is None else x[keep]
+    return t @ solve(*condense(kr, t.T @ rhs, x=xr, D=pos[fixed]))
+
+
+def free_part(r, free, tie=None):
+    """The residual ``r`` on the ``free`` dofs, summed over each tie's group (the
+    force on a platen)."""
+    if tie is None:
+        return r[free]
+    t, keep = tie
+    on = np.zeros(r.size, bool)
+    on[free] = True
+    return (t.T @ r)[on[keep]]
 
 
 class Solver:
@@ -150,6 +201,7 @@ class Solver:
         _, self.tangent = farm.trial(np.zeros((farm.n, macro.dim, macro.dim)))
         farm.rollback()
         self.free = np.setdiff1d(np.arange(n), supports.dofs)
+        self._tie = tie_map(n, supports.ties, supports.dofs) if supports.ties else None
         # displacements below round-off of the mesh size count as zero
         self._u_floor = 1e-12 * float(np.ptp(macro.mesh.p, axis=1).max())
         self.iterations = []  # Newton iterations of each converged step
@@ -235,7 +287,7 @@ class Solver:
         # predictor from the committed tangents, on the committed configuration
         k_c = self.stiffness(self.tangent, self.sigma, self.u, t1)
         r_c = macro.internal_force(self.sigma, self.u) - self.f_ext(t1)
-        du = solve(*condense(k_c, -r_c, x=du, D=sup.dofs))
+        du = linear_solve(k_c, -r_c, sup.dofs, du, self._tie)
         growth = 0
         last = math.inf
         prev, omega = None, 1.0
@@ -256,11 +308,12 @@ class Solver:
             f_int = macro.internal_force(sig, u1)
             f_ext = self.f_ext(t1, u1)
             r = f_int - f_ext
-            rn = float(np.linalg.norm(r[self.free]))
+            rn = float(np.linalg.norm(free_part(r, self.free, self._tie)))
             ref = max(float(np.linalg.norm(f_int)), float(np.linalg.norm(f_ext)), 1e-300)
             if not math.isfinite(rn):
                 raise _NotConverged("non-finite residual")
-            dd = solve(*condense(self.stiffness(c, sig, u1, t1), -r, D=sup.dofs))
+            dd = linear_solve(self.stiffness(c, sig, u1, t1), -r, sup.dofs,
+                              tie=self._tie)
             dn = float(np.linalg.norm(dd))
             # the correction against the total displacement; without the residual
             # check against the step's own, FEMxDEM's (|du| of a late step is far

@@ -21,6 +21,14 @@
     /curve/  load_factor, displacement, force (per supported boundary, per step;
              forces on the current boundary)
 
+A saturated problem (:mod:`hmm.porous`) adds, per step (attrs: time [s]):
+``pore_pressure`` (n_vertices,) [Pa] (compression positive) on the nodes; element
+means ``darcy_flux_x`` ... [m/s] and ``total_stress_xx`` ... [Pa] (the total stress
+``sigma' - alpha p I``; ``stress_*`` and ``mean_stress`` are then the effective
+ones); ``gauss/pore_pressure``, ``gauss/darcy_flux``, ``gauss/total_stress``; and
+the curve ``time`` [s], ``pore_pressure/max`` and ``pore_pressure/mean`` [Pa]
+(``pore_pressure.png`` shows them with the last field).
+
 ``fields.xdmf`` references it (a temporal collection, one grid per written step; under
 finite kinematics each grid is the deformed mesh, so ParaView shows the real shape);
 ``load_displacement.png`` and ``deviatoric_strain.png`` show the run; written at
@@ -91,12 +99,15 @@ class Output:
         The curves of ``load_displacement.png``.
     restart : (step, curve), optional
         Continue the existing file from a checkpoint's step and curve.
+    porous : PorousMacro, optional
+        The pressure field of a saturated problem.
     """
 
     def __init__(self, directory, macro, boundaries, every=1, overwrite=False,
-                 driven=(), restart=None):
+                 driven=(), restart=None, porous=None):
         self.dir = Path(directory)
         self.macro = macro
+        self.porous = porous
         self.boundaries = tuple(boundaries)
         #: (boundary, component) pairs whose displacement is prescribed non-zero:
         #: the load-displacement curves
@@ -104,7 +115,8 @@ class Output:
         self.every = int(every)
         self.path = self.dir / "fields.h5"
         self.frames = []  # (group name, load factor)
-        self.curve = {k: [] for k in self.curve_names(self.boundaries)}
+        self.curve = {k: [] for k in self.curve_names(self.boundaries,
+                                                      porous is not None)}
         self.f, self._kept, self._closed = None, None, False
         if restart is not None:
             self._reopen(*restart)
@@ -125,12 +137,16 @@ class Output:
         self.f.create_dataset("gauss/points", data=macro.gauss_points())
         self.f.create_dataset("gauss/weights", data=macro.weights())
         self.f.attrs["kinematics"] = macro.kinematics
+        if porous is not None:
+            self.f.attrs["pressure_element"] = porous.p_element
 
     @staticmethod
-    def curve_names(boundaries):
-        """The series of the load-displacement curve (``/curve/`` of ``fields.h5``)."""
+    def curve_names(boundaries, saturated=False):
+        """The series of the load-displacement curve (``/curve/`` of ``fields.h5``),
+        and of a saturated problem's clock and pore pressures."""
         return ["load_factor", "iterations", "dem_points"] + [
-            f"{kind}/{b}" for b in boundaries for kind in ("displacement", "force")]
+            f"{kind}/{b}" for b in boundaries for kind in ("displacement", "force")] \
+            + (["time", "pore_pressure/max", "pore_pressure/mean"] if saturated else [])
 
     def _reopen(self, step, curve):
         """Continue the file of an interrupted run from its checkpoint at ``step``:
@@ -185,7 +201,14 @@ class Output:
         macro, d = self.macro, self.macro.dim
         u = solver.u
         reactions = solver.reactions()
-        self.curve["load_factor"].append(solver.t)
+        if self.porous is None:
+            self.curve["load_factor"].append(solver.t)
+        else:
+            self.curve["load_factor"].append(solver.schedule.load_factor(solver.t))
+            self.curve["time"].append(solver.t)
+            pn = self.porous.nodal_pressure(solver.p)
+            self.curve["pore_pressure/max"].append(float(pn.max()))
+            self.curve["pore_pressure/mean"].append(float(pn.mean()))
         self.curve["iterations"].append(iterations)
         self.curve["dem_points"].append(int(np.sum(measures["ran_dem"] > 0)))
         for b in self.boundaries:
@@ -217,7 +240,10 @@ class Output:
         name = f"steps/{step:05d}"
         g = self._file().create_group(name)
         g.attrs["step"] = step
-        g.attrs["load_factor"] = solver.t
+        g.attrs["load_factor"] = solver.t if self.porous is None \
+            else solver.schedule.load_factor(solver.t)
+        if self.porous is not None:
+            g.attrs["time"] = solver.t
         g.attrs["iterations"] = iterations
         disp = np.zeros((macro.mesh.p.shape[1], 3))
         disp[:, :d] = macro.nodal_displacement(u)
@@ -255,8 +281,25 @@ class Output:
         g.create_dataset("gauss/ran_dem", data=np.asarray(measures["ran_dem"], bool))
         if macro.finite:
             g.create_dataset("gauss/points", data=macro.gauss_points(u))
+        if self.porous is not None:
+            self._saturated(g, solver, emean)
         self.f.flush()
         self.frames.append((name, solver.t))
+
+    def _saturated(self, g, solver, emean):
+        """A saturated problem's fields in frame group ``g``."""
+        por, d = self.porous, self.macro.dim
+        g.create_dataset("pore_pressure", data=por.nodal_pressure(solver.p))
+        flux = por.darcy_flux(solver.p)
+        total = solver.total_stress()
+        for a in range(d):
+            g.create_dataset(f"darcy_flux_{_AXES[a]}", data=emean(flux[:, a]))
+        for a, b in _components(d):
+            g.create_dataset(f"total_stress_{_AXES[a]}{_AXES[b]}",
+                             data=emean(total[:, a, b]))
+        g.create_dataset("gauss/pore_pressure", data=por.gauss_pressure(solver.p))
+        g.create_dataset("gauss/darcy_flux", data=flux)
+        g.create_dataset("gauss/total_stress", data=total)
 
     def close(self):
         """Write the curve, the XDMF file and the plots; close the HDF5 file."""
@@ -307,8 +350,13 @@ class Output:
                                                      "AttributeType": "Vector",
                                                      "Center": "Node"})
             item(att, f"{name}/displacement", (n_pts, 3))
+            if "pore_pressure" in keys:
+                att = ET.SubElement(grid, "Attribute", {"Name": "pore_pressure",
+                                                         "AttributeType": "Scalar",
+                                                         "Center": "Node"})
+                item(att, f"{name}/pore_pressure", (n_pts,))
             for k in keys:
-                if k in ("displacement", "points"):
+                if k in ("displacement", "points", "pore_pressure"):
                     continue
                 att = ET.SubElement(grid, "Attribute", {"Name": k, "AttributeType":
                                                          "Scalar", "Center": "Cell"})
@@ -337,10 +385,13 @@ class Output:
         ax.set_xlabel("prescribed displacement [mm] (positive: into the sample)")
         ax.set_ylabel("reaction force [N]" + (" per m thickness" if d == 2 else ""))
         ax.grid(alpha=0.3)
-        ax.legend()
+        if ax.lines:
+            ax.legend()
         fig.tight_layout()
         save_figure(fig, self.dir / "load_displacement.png")
         plt.close(fig)
+        if self.porous is not None:
+            self._pressure_plot(plt, c)
         if d != 2 or not self.frames:
             return
         with h5py.File(self.path, "r") as f:
@@ -373,4 +424,45 @@ class Output:
                      f"final step, displacements x {scale:.3g}", fontsize=10)
         fig.tight_layout()
         save_figure(fig, self.dir / "deviatoric_strain.png")
+        plt.close(fig)
+
+    def _pressure_plot(self, plt, c):
+        """``pore_pressure.png``: the pore pressure over time (maximum and mean over
+        the nodes) and, in 2D, its field at the last frame on the mesh."""
+        import matplotlib.tri as mtri
+
+        d = self.macro.dim
+        panels = 2 if d == 2 and self.frames else 1
+        fig, axs = plt.subplots(1, panels, figsize=(5.0 * panels, 4), squeeze=False)
+        ax = axs[0, 0]
+        t = np.asarray(c["time"])
+        for key, style, label in (("pore_pressure/max", "o-", "largest"),
+                                  ("pore_pressure/mean", "s--", "mean over the nodes")):
+            ax.plot(t, 1e-3 * np.asarray(c[key]), style, ms=3, label=label)
+        if t.size > 1 and t[t > 0].size and t.max() / t[t > 0].min() > 100.0:
+            ax.set_xscale("log")
+        ax.set_xlabel("time [s]")
+        ax.set_ylabel("pore pressure [kPa]")
+        ax.grid(alpha=0.3)
+        ax.legend()
+        if panels == 2:
+            with h5py.File(self.path, "r") as f:
+                name = self.frames[-1][0]
+                pn = f[name]["pore_pressure"][()]
+                when = float(f[name].attrs["time"])
+            mesh = self.macro.mesh
+            xy = mesh.p.T  # small kinematics: the mesh does not move
+            corners = mesh.t[:3].T if isinstance(mesh, MeshTri) else mesh.t[:4].T
+            tris = corners if corners.shape[1] == 3 else np.vstack(
+                [corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]])
+            ax = axs[0, 1]
+            tri = mtri.Triangulation(1e3 * xy[:, 0], 1e3 * xy[:, 1], tris)
+            art = ax.tripcolor(tri, 1e-3 * pn, shading="gouraud", cmap="Blues")
+            ax.set_aspect("equal")
+            ax.set_xlabel("x [mm]")
+            ax.set_ylabel("y [mm]")
+            ax.set_title(f"pore pressure at t = {when:.4g} s", fontsize=10)
+            fig.colorbar(art, ax=ax, shrink=0.8, label="pore pressure [kPa]")
+        fig.tight_layout()
+        save_figure(fig, self.dir / "pore_pressure.png")
         plt.close(fig)

@@ -26,6 +26,10 @@ Layout (SI units; ``d`` is ``[mesh] dim``)::
     point = [0.025, 0.0]           # [m]
     component = "x"
 
+    [[platen]]                     # a rigid frictionless platen: the boundary's
+    boundary = "top"               # component moves as one, pushed by its loads
+    component = "y"
+
     [[pressure]]                   # normal pressure (compression positive)
     boundary = "left"
     value = 1e5                    # [Pa]
@@ -47,6 +51,22 @@ Layout (SI units; ``d`` is ``[mesh] dim``)::
 
     [load]
     steps = 10                     # load steps (each may be cut and retried)
+
+    [fluid]                        # a saturated problem (Biot u-p, optional)
+    permeability = 1e-12           # [m^2] a number or a d x d tensor
+    viscosity = 1e-3               # [Pa s]
+    bulk_modulus = 2.2e9           # [Pa] of the fluid
+    porosity = 0.4
+    initial_pressure = 0.0         # [Pa]
+
+    [[drainage]]                   # hydraulic boundaries (others impermeable)
+    boundary = "top"
+    pressure = 0.0                 # [Pa] drained (or flux = inflow [m/s])
+
+    [time]                         # a saturated problem's clock: [load] steps reach end
+    end = 3600.0                   # [s]
+    first = 1.0                    # [s] optional: steps growing geometrically
+    ramp = 0.0                     # [s] the load's rise time (0: at once)
 
     [micro]
     model = "dem"                  # dem | adaptive | linear_elastic | hyperbolic |
@@ -136,6 +156,15 @@ SCHEMA = {
         "component": Key("str", default=REQUIRED, choices=COMPONENTS,
                          doc="Displacement component."),
         "value": Key("float", "m", default=0.0, doc="Value at the end of the schedule."),
+    }),
+    "platen": Section(doc="A rigid, frictionless platen: one displacement component "
+                          "of a boundary is a single unknown, pushed by the loads on "
+                          "the boundary (a pressure or a traction): the plates of "
+                          "Mandel's problem, a rigid footing under a force.",
+                      array=True, keys={
+        "boundary": Key("str", default=REQUIRED, doc="Named boundary of the mesh."),
+        "component": Key("str", default=REQUIRED, choices=COMPONENTS,
+                         doc="The component that moves as one."),
     }),
     "pressure": Section(doc="Normal pressure on a boundary (compression positive).",
                         array=True, keys={
@@ -265,11 +294,61 @@ SCHEMA = {
                       doc="Aitken relaxation of successive Newton corrections (steadies "
                           "the DEM's approximate tangent; false: plain Newton, "
                           "quadratic with an exact tangent)."),
+        "coupling": Key("str", choices=("monolithic", "fixed_stress"),
+                        doc="A saturated problem: Newton on displacement and pore "
+                            "pressure at once (monolithic, the default), or the "
+                            "fixed-stress split (the flow, then the mechanics, in each "
+                            "iteration; YADE FEMxDEM's msFEMup)."),
         "check_residual": Key("bool", default=True,
                               doc="Converge on residual and correction; false: on the "
                                   "correction over the step's displacement (YADE "
                                   "FEMxDEM's criterion; a cut step's scaled to the "
                                   "nominal step) or the residual, either."),
+    }),
+    "fluid": Section(doc="The pore fluid of a saturated problem (Biot's u-p "
+                         "equations, hmm.porous): with it the micro models give the "
+                         "effective stress, [time] sets the steps in seconds and "
+                         "[[drainage]] the hydraulic boundaries. Needs a quadratic "
+                         "element (quad8 quad2 tri2 hex20 hex27 tet10) and small "
+                         "kinematics.", keys={
+        "permeability": Key("tensor", "m^2", range=POSITIVE,
+                            doc="Intrinsic permeability k (required): a number "
+                                "(isotropic) or a d x d symmetric positive definite "
+                                "tensor."),
+        "viscosity": Key("float", "Pa s", default=1e-3, range=POSITIVE,
+                         doc="Dynamic viscosity of the fluid (water: 1e-3)."),
+        "bulk_modulus": Key("float", "Pa", default=2.2e9, range=POSITIVE,
+                            doc="Bulk modulus of the fluid (water: 2.2e9)."),
+        "porosity": Key("float", default=0.4, range=Range(0.0, 1.0, False, False),
+                        doc="Porosity n, which weighs the fluid's compressibility in "
+                            "the storage 1/M = n/K_f + (biot - n)/K_s."),
+        "biot": Key("float", default=1.0, range=Range(0.0, 1.0, False, True),
+                    doc="Biot's coefficient alpha, in [porosity, 1]."),
+        "solid_bulk_modulus": Key("float", "Pa", range=POSITIVE,
+                                  doc="Bulk modulus of the grains K_s (default: "
+                                      "incompressible grains)."),
+        "initial_pressure": Key("float", "Pa", default=0.0,
+                                doc="Uniform pore pressure at the start."),
+    }),
+    "drainage": Section(doc="Hydraulic conditions of a saturated problem: every "
+                            "boundary not named here is impermeable.", array=True,
+                        keys={
+        "boundary": Key("str", default=REQUIRED, doc="Named boundary of the mesh."),
+        "pressure": Key("float", "Pa", doc="Drained: the pore pressure held on the "
+                                           "boundary from the first step on (this or "
+                                           "flux)."),
+        "flux": Key("float", "m/s", doc="Fluid volume entering per unit area and time "
+                                        "(negative: leaving); this or pressure."),
+    }),
+    "time": Section(doc="The time of a saturated problem: [load] steps steps reach "
+                        "end.", keys={
+        "end": Key("float", "s", range=POSITIVE, doc="End of the run (required)."),
+        "first": Key("float", "s", range=POSITIVE,
+                     doc="The first step; the later ones grow geometrically to reach "
+                         "end (default: equal steps)."),
+        "ramp": Key("float", "s", default=0.0, range=NONNEGATIVE,
+                    doc="The load factor rises from 0 to 1 over this time (0: the whole "
+                        "load in the first step, carried undrained at first)."),
     }),
     "output": Section(doc="Where results go.", keys={
         "dir": Key("str", doc="Output directory; default output/<file stem>."),
@@ -332,6 +411,10 @@ def validate_problem(data, source="<problem>", base_dir="."):
         if COMPONENTS.index(c["component"]) >= m["dim"]:
             ctx.fail(f"component \"{c['component']}\" does not exist in {m['dim']}D",
                      f"[[dirichlet]] #{i + 1}")
+    for i, c in enumerate(out["platen"]):
+        if COMPONENTS.index(c["component"]) >= m["dim"]:
+            ctx.fail(f"component \"{c['component']}\" does not exist in {m['dim']}D",
+                     f"[[platen]] #{i + 1}")
     if not out["dirichlet"]:
         ctx.fail("a quasi-static problem needs supports: add [[dirichlet]] conditions")
     if out["imperfection"] and out["micro"]["model"] not in ("dem", "adaptive"):
@@ -346,6 +429,7 @@ def validate_problem(data, source="<problem>", base_dir="."):
                  f"\"{out['micro']['model']}\" is a small-strain law (use "
                  f"\"hypoelastic\" or \"neo_hookean\", or kinematics = \"small\")",
                  "[solver]")
+    _check_fluid(ctx, out, data)
     if out["micro"]["model"] in ("dem", "adaptive"):
         from .experiment import check_shape
         from .micro import PERTURBATION_NEEDS_RELAX
@@ -355,6 +439,54 @@ def validate_problem(data, source="<problem>", base_dir="."):
             ctx.fail(f"tangent = \"perturbation\" with relax = false: "
                      f"{PERTURBATION_NEEDS_RELAX}", "[micro]")
     return out
+
+
+def _check_fluid(ctx, out, data):
+    """A saturated problem has [fluid] and [time]; a dry one neither, nor drainage.
+    An absent [fluid] or [time] becomes None."""
+    if data.get("fluid") is None:
+        for name in ("time", "drainage"):
+            if data.get(name) is not None:
+                ctx.fail("applies to a saturated problem only: add a [fluid] section",
+                         f"[{name}]" if name == "time" else "[[drainage]] #1")
+        if out["solver"]["coupling"] is not None:
+            ctx.fail("coupling applies to a saturated problem only: add a [fluid] "
+                     "section", "[solver]")
+        out["fluid"] = out["time"] = None
+        return
+    if out["solver"]["coupling"] is None:
+        out["solver"]["coupling"] = "monolithic"
+    fl, tm = out["fluid"], out["time"]
+    if fl["permeability"] is None:
+        ctx.fail("missing required key 'permeability' (number or dim x dim array, "
+                 "m^2)", "[fluid]")
+    k = np.asarray(fl["permeability"], dtype=np.float64)
+    if k.ndim == 2 and not (np.allclose(k, k.T) and np.all(np.linalg.eigvalsh(k) > 0)):
+        ctx.fail(f"permeability must be symmetric positive definite, got "
+                 f"{fl['permeability']}", "[fluid]")
+    if not fl["porosity"] <= fl["biot"]:
+        ctx.fail(f"biot must be in [porosity, 1] = [{fl['porosity']:g}, 1], got "
+                 f"{fl['biot']:g}", "[fluid]")
+    if data.get("time") is None or tm["end"] is None:
+        ctx.fail("a saturated problem needs [time] end (seconds): the time its "
+                 "[load] steps reach", "[time]")
+    if tm["first"] is not None and tm["first"] > tm["end"] / out["load"]["steps"]:
+        ctx.fail(f"first = {tm['first']:g} s is longer than an equal step, end / "
+                 f"steps = {tm['end'] / out['load']['steps']:g} s", "[time]")
+    for i, c in enumerate(out["drainage"]):
+        if (c["pressure"] is None) == (c["flux"] is None):
+            ctx.fail("needs a pressure or a flux (one of them)", f"[[drainage]] #{i + 1}")
+    from .porous import PAIRS
+
+    if out["mesh"]["element"] not in PAIRS:
+        ctx.fail(f"a saturated problem needs a quadratic element ({', '.join(PAIRS)}) "
+                 f"to pair with linear pore pressures, not \"{out['mesh']['element']}\"",
+                 "[mesh]")
+    if data.get("solver", {}).get("kinematics") is None:
+        out["solver"]["kinematics"] = "small"
+    elif out["solver"]["kinematics"] != "small":
+        ctx.fail("a saturated problem runs under kinematics = \"small\" for now",
+                 "[solver]")
 
 
 def build_macro(problem):
@@ -381,7 +513,7 @@ def build_macro(problem):
         raise SceneError(f"{src}: [mesh] has no elements")
     mesh = _cut_boundaries(problem, mesh)
     known = set(mesh.boundaries or {})
-    for kind in ("dirichlet", "pressure", "traction"):
+    for kind in ("dirichlet", "pressure", "traction", "drainage", "platen"):
         for i, c in enumerate(problem[kind]):
             if c.get("point") is not None:
                 if vertex_at(mesh, c["point"]) is None:
@@ -445,9 +577,18 @@ def build_loads(problem, macro):
     dofs = np.concatenate(dofs)
     values = np.concatenate(values)
     dofs, first = np.unique(dofs, return_index=True)  # a corner in two conditions
+    ties = []
+    for i, c in enumerate(problem["platen"]):
+        k = macro.dofs(c["boundary"], COMPONENTS.index(c["component"]))
+        if np.intersect1d(k, dofs).size or any(np.intersect1d(k, t).size for t in ties):
+            raise SceneError(f"{problem['source']}: [[platen]] #{i + 1} boundary "
+                             f"\"{c['boundary']}\" {c['component']} is also held by a "
+                             f"[[dirichlet]] or another platen")
+        ties.append(k)
     supports = Supports(dofs, values[first],
                         tuple(dict.fromkeys(c["boundary"] for c in problem["dirichlet"]
-                                            if c["boundary"] is not None)))
+                                            if c["boundary"] is not None)),
+                        ties=tuple(ties))
     f_const = np.zeros(macro.n_dofs)
     f_ramp = np.zeros(macro.n_dofs)
     loads = []
@@ -472,6 +613,30 @@ def build_loads(problem, macro):
         else:
             f_ramp += macro.body_force(b["value"])
     return supports, f_const, f_ramp, tuple(loads)
+
+
+def build_porous(problem, macro):
+    """The pressure field and the time schedule of a saturated problem
+    (:class:`~hmm.porous.PorousMacro`, :class:`~hmm.porous.TimeSchedule`), or
+    ``(None, None)`` for a dry one."""
+    if problem["fluid"] is None:
+        return None, None
+    from .porous import Fluid, PorousMacro, TimeSchedule
+
+    fl = problem["fluid"]
+    ks = fl["solid_bulk_modulus"]
+    fluid = Fluid(permeability=fl["permeability"], viscosity=fl["viscosity"],
+                  bulk_modulus=fl["bulk_modulus"], porosity=fl["porosity"],
+                  biot=fl["biot"], solid_bulk_modulus=math.inf if ks is None else ks,
+                  initial_pressure=fl["initial_pressure"])
+    drained = {c["boundary"]: c["pressure"] for c in problem["drainage"]
+               if c["pressure"] is not None}
+    inflow = {c["boundary"]: c["flux"] for c in problem["drainage"]
+              if c["flux"] is not None}
+    tm = problem["time"]
+    schedule = TimeSchedule(end=tm["end"], steps=problem["load"]["steps"],
+                            first=tm["first"], ramp=tm["ramp"])
+    return PorousMacro(macro, fluid, drained, inflow), schedule
 
 
 def build_farm(problem, macro, progress=None):

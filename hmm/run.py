@@ -17,9 +17,10 @@ from dem.simulation import progress_bar
 from .checkpoint import Checkpoint
 from .checkpoint import save as save_checkpoint
 from .coupling import Solver, SolverError, SolverSettings
+from .porous import BiotSolver
 from .farm import mpi_world
 from .io import Output
-from .problem import build_farm, build_loads, build_macro, validate_problem
+from .problem import build_farm, build_loads, build_macro, build_porous, validate_problem
 
 log = logging.getLogger(__name__)
 
@@ -60,8 +61,11 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     t0 = time.perf_counter()
     macro = build_macro(problem)
     supports, f_const, f_ramp, loads = build_loads(problem, macro)
-    say(f"mesh: {macro.n_elems} {macro.element} elements, {macro.n_dofs} dofs, "
-        f"{macro.n_gp} Gauss points" + (f", {comm.Get_size()} MPI ranks" if comm else ""))
+    porous, schedule = build_porous(problem, macro)
+    say(f"mesh: {macro.n_elems} {macro.element} elements, {macro.n_dofs} dofs"
+        + (f" + {porous.n_p} pore pressures ({porous.p_element})" if porous else "")
+        + f", {macro.n_gp} Gauss points"
+        + (f", {comm.Get_size()} MPI ranks" if comm else ""))
     driven = [(c["boundary"], "xyz".index(c["component"])) for c in problem["dirichlet"]
               if c["value"] != 0.0 and c["boundary"] is not None]
     ck = None
@@ -69,11 +73,13 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     try:  # every rank opens the checkpoint: each reads its own points from it
         if restart:
             ck = Checkpoint(Path(directory) / "checkpoint.h5", problem)
-            ck.check(macro, Output.curve_names(supports.boundaries))
+            ck.check(macro, Output.curve_names(supports.boundaries, porous is not None),
+                     porous, schedule)
         if rank == 0:
             out = Output(directory, macro, supports.boundaries, problem["output"]["every"],
                          overwrite=overwrite, driven=driven,
-                         restart=(ck.step, ck.curve()) if ck is not None else None)
+                         restart=(ck.step, ck.curve()) if ck is not None else None,
+                         porous=porous)
     except (FileExistsError, FileNotFoundError, ValueError) as err:
         refused = err
     if comm is not None:
@@ -102,8 +108,8 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
         farm.serve()
         return None
     try:
-        summary = _solve(problem, macro, farm, supports, (f_const, f_ramp, loads), out, progress,
-                         say, t0, ck, stop_after)
+        summary = _solve(problem, macro, farm, supports, (f_const, f_ramp, loads), out,
+                         progress, say, t0, ck, stop_after, (porous, schedule))
     finally:
         if comm is not None:
             farm.close()
@@ -114,14 +120,21 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
 
 
 def _solve(problem, macro, farm, supports, loading, out, progress, say, t0,
-           ck, stop_after):
+           ck, stop_after, saturated=(None, None)):
     say(f"micro models ready ({problem['micro']['model']}) in "
         f"{time.perf_counter() - t0:.1f} s")
     st = problem["solver"]
     settings = SolverSettings.from_section(st)
     f_const, f_ramp, loads = loading
-    solver = Solver(macro, farm, supports, f_const, f_ramp, settings, loads)
+    porous, schedule = saturated
     n = problem["load"]["steps"]
+    if porous is None:
+        solver = Solver(macro, farm, supports, f_const, f_ramp, settings, loads)
+        ends = np.arange(1, n + 1) / n  # the load factor at the end of each step
+    else:
+        solver = BiotSolver(porous, farm, supports, schedule, f_const, f_ramp, settings,
+                            st["coupling"])
+        ends = schedule.times()  # [s]
     first = 1
     if ck is None:
         out.write(0, solver, farm.measures(), 0, force_frame=True)
@@ -141,18 +154,20 @@ def _solve(problem, macro, farm, supports, loading, out, progress, say, t0,
                     bar.set_postfix_str(f"Newton {it}: |r|/|f| = {r:.1e}")
 
             try:
-                its = solver.advance(k / n - solver.t, on_iteration=show)
+                its = solver.advance(ends[k - 1] - solver.t, on_iteration=show)
             except SolverError as err:
                 # cut sub-steps of step k may have converged before the stop
-                partial = solver.t > (k - 1) / n + 1e-12 / n
+                begin = ends[k - 2] if k > 1 else 0.0
+                partial = solver.t > begin + 1e-12 * ends[-1] / n
                 done = solver.iterations[-1] if solver.iterations else 0
                 out.stopped(k if partial else k - 1, solver, farm.measures(), done,
                             str(err), partial=partial)
-                raise SolverError(f"load step {k} of {n}: {err}; that state (load "
-                                  f"factor {solver.t:.6g}) is the last frame of "
+                clock = "load factor" if porous is None else "time [s]"
+                raise SolverError(f"load step {k} of {n}: {err}; that state ({clock} "
+                                  f"{solver.t:.6g}) is the last frame of "
                                   f"{out.path}") from err
             out.write(k, solver, farm.measures(), its, force_frame=(k == n))
-            log.info("load step %d of %d done: load factor %.6g, %d Newton iterations, "
+            log.info("load step %d of %d done: clock %.6g, %d Newton iterations, "
                      "%d cuts so far, %.1f s", k, n, solver.t, its, solver.cuts,
                      time.perf_counter() - t1)
             if (every_ck and k % every_ck == 0) or k == last < n:
@@ -167,14 +182,17 @@ def _solve(problem, macro, farm, supports, loading, out, progress, say, t0,
     m = farm.measures()
     return {"steps": last, "iterations": list(solver.iterations), "cuts": solver.cuts,
             "trials": farm.n_trials, "solve_time": solve_time,
-            "total_time": time.perf_counter() - t0, "load_factor": solver.t,
+            "total_time": time.perf_counter() - t0,
+            "load_factor": solver.t if porous is None else schedule.load_factor(solver.t),
             "dem_points": int(np.sum(m["ran_dem"] > 0)), "gauss_points": macro.n_gp,
             "reactions": {k: v.tolist() for k, v in solver.reactions().items()},
             "u": solver.u.copy(), "sigma": solver.sigma.copy(),
             "migrated": getattr(farm, "n_migrated", 0),
             "files": [str(out.dir / f) for f in ("fields.h5", "fields.xdmf",
                                                  "load_displacement.png",
-                                                 "deviatoric_strain.png")]}
+                                                 "deviatoric_strain.png")]
+                      + ([str(out.dir / "pore_pressure.png")] if porous else []),
+            **({} if porous is None else {"time": solver.t, "p": solver.p.copy()})}
 
 
 def demo_problem():

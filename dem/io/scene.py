@@ -135,10 +135,12 @@ class Key:
     """One key of a section.
 
     ``type`` is one of ``int``, ``float``, ``bool``, ``str``, ``vector`` (``dim``
-    numbers), ``radius`` (a number or ``[min, max]``) and ``path`` (a file name relative
-    to the scene). ``default`` is a value, ``None`` (optional: computed when absent) or
-    :data:`REQUIRED`. ``only`` lists the variants (generators, laws) the key belongs to
-    (empty: all); ``required_for`` the variants for which it is required.
+    numbers), ``radius`` (a number or ``[min, max]``), ``tensor`` (a number or ``dim``
+    rows of ``dim`` numbers; ``range`` applies to a number only) and ``path`` (a file
+    name relative to the scene). ``default`` is a value, ``None`` (optional: computed
+    when absent) or :data:`REQUIRED`. ``only`` lists the variants (generators, laws)
+    the key belongs to (empty: all); ``required_for`` the variants for which it is
+    required.
     """
 
     type: str
@@ -413,6 +415,17 @@ def _check_value(ctx, where, key, spec, value):
                      f"got {_show(value)}", where)
         return [_number(ctx, where, f"{key}[{i}]", spec, v)
                 for i, v in enumerate(value)]
+    if t == "tensor":
+        if not isinstance(value, list):
+            return _number(ctx, where, key, spec, value, f"a number or {ctx.dim} rows "
+                           f"of {ctx.dim} numbers")
+        if len(value) != ctx.dim or any(not isinstance(row, list) or len(row) != ctx.dim
+                                        for row in value):
+            ctx.fail(f"{key} must be a number or {ctx.dim} rows of {ctx.dim} numbers "
+                     f"(dim = {ctx.dim}), got {_show(value)}", where)
+        free = Key("float")
+        return [[_number(ctx, where, f"{key}[{i}][{j}]", free, v)
+                 for j, v in enumerate(row)] for i, row in enumerate(value)]
     if t == "radius":
         if isinstance(value, list):
             if len(value) != 2:
@@ -588,6 +601,7 @@ def _suggest(name, known):
 
 def _describe(spec):
     kind = {"vector": "array of dim numbers", "radius": "number or [min, max]",
+            "tensor": "number or dim x dim array",
             "path": "file name", "str": "string", "int": "integer", "float": "number",
             "bool": "boolean"}[spec.type]
     return kind + (f", {spec.unit}" if spec.unit != "-" else "")

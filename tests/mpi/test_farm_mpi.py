@@ -16,7 +16,13 @@ MPI = pytest.importorskip("mpi4py.MPI")
 from hmm.coupling import Solver, SolverSettings
 from hmm.farm import MPIFarm, SerialFarm
 from hmm.micro import LinearElastic
-from hmm.problem import build_loads, build_macro, model_factory, validate_problem
+from hmm.problem import (
+    build_loads,
+    build_macro,
+    build_porous,
+    model_factory,
+    validate_problem,
+)
 from hmm.run import DEMO, run_problem
 
 pytestmark = pytest.mark.mpi
@@ -134,4 +140,42 @@ def test_a_failing_point_on_rank_one_ends_the_run_with_its_id():
                          and f"Gauss point {bad}" in message, f"{message} / {message2}")
     else:
         farm.serve()
+        _all_ranks_agree(None)
+
+
+def test_a_saturated_run_on_two_ranks_equals_one_rank_and_restarts(tmp_path_factory):
+    """Biot u-p over DEM RVEs farmed on two ranks: the same pressures and
+    displacements as on one, and a restart repeats the run."""
+    base = COMM.bcast(str(tmp_path_factory.mktemp("biot")) if COMM.rank == 0 else None)
+    prob = copy.deepcopy(DEMO)
+    prob["mesh"].update(element="quad8", cells=[1, 1])
+    prob["micro"]["count"] = 30
+    prob["load"]["steps"] = 3
+    prob["dirichlet"][2]["value"] = -0.0003
+    prob["fluid"] = {"permeability": 1e-12}
+    prob["drainage"] = [{"boundary": "top", "pressure": 0.0}]
+    prob["time"] = {"end": 30.0, "first": 1.0}
+    prob["output"]["checkpoint_every"] = 2
+    problem = validate_problem(prob)
+    full = run_problem(problem, f"{base}/full", progress=False)
+    run_problem(problem, f"{base}/cut", progress=False, stop_after=1)
+    again = run_problem(problem, f"{base}/cut", progress=False, restart=True)
+    if COMM.rank == 0:
+        from hmm.porous import BiotSolver
+
+        macro = build_macro(problem)
+        sup, fc, fr, _ = build_loads(problem, macro)
+        porous, schedule = build_porous(problem, macro)
+        factory = model_factory(problem, macro.dim)
+        ser = BiotSolver(porous, SerialFarm([factory(g) for g in range(macro.n_gp)]),
+                         sup, schedule, fc, fr, SolverSettings.from_section(
+                             problem["solver"]))
+        for t in schedule.times():
+            ser.advance(t - ser.t)
+        same = (np.array_equal(full["u"], ser.u) and np.array_equal(full["p"], ser.p)
+                and np.array_equal(full["u"], again["u"])
+                and np.array_equal(full["p"], again["p"]) and full["p"].max() > 0.0)
+        _all_ranks_agree(same, "saturated run differs between ranks or on restart")
+    else:
+        assert full is None and again is None
         _all_ranks_agree(None)

@@ -1,0 +1,183 @@
+"""Saturated problems from problem files: [fluid], [[drainage]], [time] and
+[[platen]] validated, built and run as the Python API does; their output, restart,
+and a DEM micro model answering undrained."""
+
+import copy
+
+import h5py
+import numpy as np
+import pytest
+
+from dem.io.scene import SceneError
+from hmm.coupling import SolverSettings
+from hmm.farm import SerialFarm
+from hmm.micro import LinearElastic
+from hmm.porous import BiotSolver
+from hmm.problem import build_loads, build_macro, build_porous, validate_problem
+from hmm.run import run_problem
+
+E, NU, Q, H = 1e7, 0.25, 1e4, 1.0
+
+COLUMN = {
+    "mesh": {"dim": 2, "element": "quad8", "size": [0.1, H], "cells": [1, 8]},
+    "dirichlet": [{"boundary": "bottom", "component": "y"},
+                  {"boundary": "left", "component": "x"},
+                  {"boundary": "right", "component": "x"}],
+    "pressure": [{"boundary": "top", "value": Q, "ramp": True}],
+    "load": {"steps": 12},
+    "fluid": {"permeability": 1.2e-10, "bulk_modulus": 2.2e9},
+    "drainage": [{"boundary": "top", "pressure": 0.0}],
+    "time": {"end": 1.0, "first": 0.01},
+    "micro": {"model": "linear_elastic", "young": E, "poisson": NU},
+}
+
+
+def column(**changes):
+    data = copy.deepcopy(COLUMN)
+    for section, values in changes.items():
+        if values is None:
+            data.pop(section, None)
+        elif isinstance(values, dict):
+            data.setdefault(section, {}).update(values)
+        else:
+            data[section] = values
+    return validate_problem(data, source="column.toml")
+
+
+def test_a_problem_file_runs_the_solver_of_the_python_api(tmp_path):
+    problem = column()
+    out = run_problem(problem, tmp_path / "run", progress=False)
+    macro = build_macro(problem)
+    sup, fc, fr, _ = build_loads(problem, macro)
+    porous, schedule = build_porous(problem, macro)
+    s = BiotSolver(porous, SerialFarm([LinearElastic(E, NU) for _ in range(macro.n_gp)]),
+                   sup, schedule, fc, fr, SolverSettings())
+    for t in schedule.times():
+        s.advance(t - s.t)
+    assert out["time"] == pytest.approx(1.0)
+    assert np.array_equal(out["p"], s.p) and np.array_equal(out["u"], s.u)
+    assert out["load_factor"] == 1.0
+
+
+def test_fields_carry_pressure_flux_and_total_stress(tmp_path):
+    run_problem(column(), tmp_path, progress=False)
+    with h5py.File(tmp_path / "fields.h5", "r") as f:
+        last = f["steps"][sorted(f["steps"])[-1]]
+        assert last.attrs["time"] == pytest.approx(1.0)
+        assert f.attrs["pressure_element"] == "quad1"
+        p = last["pore_pressure"][()]
+        y = f["mesh/points"][:, 1]
+        assert np.all(p[np.isclose(y, H)] == 0.0) and p.max() > 0.0
+        # a column: the total vertical stress carries the load everywhere
+        total = last["gauss/total_stress"][()]
+        assert total[:, 1, 1] == pytest.approx(-Q, rel=1e-8)
+        eff = last["gauss/stress"][()]
+        pg = last["gauss/pore_pressure"][()]
+        assert eff - pg[:, None, None] * np.eye(2) == pytest.approx(total, abs=1e-9 * Q)
+        flux = last["gauss/darcy_flux"][()]
+        assert np.all(flux[:, 1] > 0.0)  # water leaves upwards
+        assert np.allclose(flux[:, 0], 0.0, atol=1e-10 * flux[:, 1].max())
+        assert f["curve/time"][-1] == pytest.approx(1.0)
+        assert np.all(np.diff(f["curve/pore_pressure/max"][1:]) < 0.0)  # 0: before
+    xdmf = (tmp_path / "fields.xdmf").read_text()
+    assert 'Name="pore_pressure" AttributeType="Scalar" Center="Node"' in xdmf
+    assert 'Name="total_stress_yy"' in xdmf
+    assert (tmp_path / "pore_pressure.png").stat().st_size > 0
+
+
+def test_restart_of_a_saturated_run_repeats_it(tmp_path):
+    problem = column(load={"steps": 4}, output={"checkpoint_every": 2})
+    full = run_problem(problem, tmp_path / "full", progress=False)
+    run_problem(problem, tmp_path / "cut", progress=False, stop_after=1)
+    again = run_problem(problem, tmp_path / "cut", progress=False, restart=True)
+    assert np.array_equal(full["p"], again["p"]) and np.array_equal(full["u"], again["u"])
+    assert again["time"] == full["time"] == 1.0
+
+
+@pytest.mark.parametrize("changes,message", [
+    ({"fluid": None}, r"\[time\] applies to a saturated problem only"),
+    ({"fluid": None, "time": None}, r"\[\[drainage\]\] #1 applies to a saturated"),
+    ({"time": None}, r"needs \[time\] end"),
+    ({"fluid": {"permeability": None}}, r"missing required key 'permeability'"),
+    ({"fluid": {"permeability": [[1e-12, 2e-12], [2e-12, 1e-12]]}},
+     r"symmetric positive definite"),
+    ({"fluid": {"permeability": [1e-12, 1e-12]}}, r"2 rows of 2 numbers"),
+    ({"fluid": {"biot": 0.3}}, r"biot must be in \[porosity, 1\]"),
+    ({"mesh": {"element": "quad1"}}, r"needs a quadratic element"),
+    ({"solver": {"kinematics": "finite"}, "micro": {"model": "hypoelastic"}},
+     r"kinematics = \"small\" for now"),
+    ({"drainage": [{"boundary": "top", "pressure": 0.0, "flux": 1e-6}]},
+     r"a pressure or a flux \(one of them\)"),
+    ({"time": {"first": 0.5}}, r"longer than an equal step"),
+    ({"fluid": None, "time": None, "drainage": None,
+      "solver": {"coupling": "fixed_stress"}}, r"coupling applies to a saturated"),
+    ({"solver": {"coupling": "staggered"}}, r"coupling must be"),
+])
+def test_saturated_problem_files_are_checked_in_one_line(changes, message):
+    with pytest.raises(SceneError, match=message) as err:
+        column(**changes)
+    assert "\n" not in str(err.value) and str(err.value).startswith("column.toml:")
+
+
+def test_an_unknown_drainage_boundary_is_named():
+    problem = column(drainage=[{"boundary": "roof", "pressure": 0.0}])
+    with pytest.raises(SceneError, match=r"\[\[drainage\]\] #1 boundary \"roof\""):
+        build_macro(problem)
+
+
+def test_a_platen_carries_a_force_as_a_rigid_plate(tmp_path):
+    """A dry block under a force on a rigid frictionless platen: its top moves as one,
+    by the plane-strain uniaxial answer sigma H (1 - nu^2) / E."""
+    data = {
+        "mesh": {"dim": 2, "element": "quad2", "size": [0.2, 0.1], "cells": [4, 2]},
+        "dirichlet": [{"boundary": "bottom", "component": "y"},
+                      {"point": [0.0, 0.0], "component": "x"}],
+        "platen": [{"boundary": "top", "component": "y"}],
+        "traction": [{"boundary": "top", "value": [0.0, -Q]}],
+        "load": {"steps": 1},
+        "micro": {"model": "linear_elastic", "young": E, "poisson": NU},
+    }
+    problem = validate_problem(data, source="block.toml")
+    out = run_problem(problem, tmp_path, progress=False)
+    macro = build_macro(problem)
+    top = out["u"][macro.dofs("top", 1)]
+    assert np.ptp(top) == 0.0
+    assert top[0] == pytest.approx(-Q * 0.1 * (1 - NU**2) / E, rel=1e-10)
+    data["dirichlet"].append({"boundary": "top", "component": "y", "value": 0.0})
+    with pytest.raises(SceneError, match=r"block.toml: \[\[platen\]\] #1 .* also held"):
+        build_loads(validate_problem(data, source="block.toml"), macro)
+
+
+def test_dem_rves_answer_undrained_at_constant_volume(tmp_path):
+    """No drainage anywhere, water far stiffer than the packing: a shortened sample
+    keeps its volume but for the water's own compression, and the squeezed water's
+    pressure rises."""
+    problem = validate_problem({
+        "mesh": {"dim": 2, "element": "quad8", "size": [0.02, 0.04], "cells": [1, 1]},
+        "dirichlet": [{"boundary": "bottom", "component": "y"},
+                      {"boundary": "left", "component": "x"},
+                      {"boundary": "top", "component": "y", "value": -4e-6}],
+        "pressure": [{"boundary": "right", "value": 1e5}],
+        "load": {"steps": 2},
+        "fluid": {"permeability": 1e-15},
+        "time": {"end": 1.0},
+        "micro": {"model": "dem", "count": 30, "seed": 2, "p0": 1e5},
+        "solver": {"tol_residual": 1e-2, "tol_displacement": 1e-2},
+    })
+    out = run_problem(problem, tmp_path, progress=False)
+    with h5py.File(tmp_path / "fields.h5", "r") as f:
+        last = f["steps"][sorted(f["steps"])[-1]]
+        eps = last["gauss/strain"][()]
+        pg = last["gauss/pore_pressure"][()]
+        w = f["gauss/weights"][()]
+    axial = np.abs(eps[:, 1, 1]).mean()
+    assert axial == pytest.approx(1e-4, rel=0.05)
+    # no water leaves: the element's volume changes only by the water's compression,
+    # tr eps = -p / M on average (M = K_f / n); the linear pressures hold the
+    # element's volume, not each point's
+    storage = 0.4 / 2.2e9
+    volume = w @ np.trace(eps, axis1=1, axis2=2)
+    assert volume == pytest.approx(-storage * (w @ pg), rel=1e-3)
+    assert abs(volume) < 0.02 * axial * w.sum()
+    assert np.all(pg > 0.0)  # shortened at constant volume: the water is squeezed
+    assert out["cuts"] == 0

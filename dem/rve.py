@@ -63,6 +63,11 @@ class RelaxationError(SimulationError):
     """The RVE did not reach quasi-static equilibrium within its step cap."""
 
 
+class PackingApart(RelaxationError):
+    """Under strain control the packing lost its contacts (a gas in a fixed cell, which
+    never relaxes): in an undrained test, liquefaction."""
+
+
 #: default time step of an RVE as a fraction of the critical step, before the
 #: reductions for dashpots and local damping (:func:`quasi_static_dt`). A quasi-static
 #: cell needs no resolved collisions (the engine's DT_FACTOR of 0.07 is set by binary
@@ -558,7 +563,7 @@ class RVE:
                 apart += 1
                 if apart >= self.APART_CHECKS:
                     cell.lgrad[:] = 0.0
-                    raise RelaxationError(
+                    raise PackingApart(
                         f"the packing came apart: {r['n_contacts']} contacts among "
                         f"{sim.bodies.n} particles (coordination "
                         f"{r['coordination']:.2f}) {apart} checks after the strain "

@@ -159,6 +159,10 @@ def expand(data, source="<sweep>", base_dir="."):
                 raise SceneError(f"{source}: [base] {section} must be a table")
             raw[section][key] = copy.deepcopy(value)
         cfg = validate_config(raw, f"{source} experiment {exp_id}", base_dir)
+        if cfg["test"]["kind"] != "drained":
+            raise SceneError(f"{source}: experiment {exp_id}: [test] kind = "
+                             f"\"{cfg['test']['kind']}\": a batch sweeps drained tests "
+                             f"(its summary is their friction and dilatancy angles)")
         canon = _canonical(overrides)
         if canon in seen:
             raise SceneError(f"{source}: experiments {seen[canon]} and {exp_id} have "

@@ -21,6 +21,7 @@ imports this module.
 """
 
 import logging
+import math
 import sys
 from pathlib import Path
 
@@ -225,6 +226,41 @@ def cmd_rve(args):
         return _report("hmm rve", "interrupted", 130)
     s = result.summary
     kind = "biaxial" if s["dim"] == 2 else "triaxial"
+    files = ", ".join(str(p) for p in result.files)
+    if s["kind"] == "undrained":
+        pt = s["phase_transformation_mean_stress"]
+        print(f"hmm rve {args.file}: undrained {kind} test (constant volume), "
+              f"{s['n_particles']} {s['particles']}, from {s['confining']:.4g} Pa\n"
+              f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
+              f"  peak deviator            {s['peak_deviator']:.4g} Pa at axial strain "
+              f"{100 * s['peak_axial_strain']:.2f} % (p' = {s['peak_mean_stress']:.4g} "
+              f"Pa)\n"
+              + (f"  phase transformation     p' = {pt:.4g} Pa, q = "
+                 f"{s['phase_transformation_deviator']:.4g} Pa at axial strain "
+                 f"{100 * s['phase_transformation_axial_strain']:.2f} %\n"
+                 if math.isfinite(pt) else
+                 "  phase transformation     none (the excess pore pressure rises to the end)\n")
+              + f"  excess pore pressure     {s['final_excess_pore_pressure']:.4g} Pa "
+              f"at the end (largest {s['max_excess_pore_pressure']:.4g} Pa)\n"
+              + (f"  liquefied                at axial strain "
+                 f"{100 * s['liquefaction_axial_strain']:.2f} % (no effective stress "
+                 f"left; the test stopped there)\n" if s["liquefied"] else "")
+              + f"  q at the end / peak q    {s['softening']:.3f}\n"
+              f"  wall time                {s['wall_time']:.3g} s\n"
+              f"  output                   {files}")
+        return 0
+    if s["kind"] == "oedometric":
+        print(f"hmm rve {args.file}: oedometric test, {s['n_particles']} "
+              f"{s['particles']}, from {s['confining']:.4g} Pa\n"
+              f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
+              f"  K0                       {s['k0']:.4f} (second half; "
+              f"{s['final_k0']:.4f} at the end)\n"
+              f"  axial stress at the end  {s['final_axial_stress']:.4g} Pa\n"
+              f"  constrained modulus      {s['constrained_modulus']:.4g} Pa (last "
+              f"increment)\n"
+              f"  wall time                {s['wall_time']:.3g} s\n"
+              f"  output                   {files}")
+        return 0
     lo = 0.8 * result.curves["axial_strain"][-1]
     print(f"hmm rve {args.file}: drained {kind} test, {s['n_particles']} "
           f"{s['particles']}, "

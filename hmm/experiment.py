@@ -44,6 +44,9 @@ __all__ = ["RVE_SCHEMA", "SUMMARY_UNITS", "UNITS", "CompressionResult", "compres
            "dilatancy_angle", "friction_angle", "load_config", "make_packing",
            "output_paths", "run_experiment", "stress_invariants", "validate_config"]
 
+#: the tests of ``[test] kind``
+KINDS = ("drained", "undrained", "oedometric")
+
 _POSITIVE = Range(0.0, lo_closed=False)
 _NONNEGATIVE = Range(0.0)
 
@@ -89,8 +92,15 @@ RVE_SCHEMA = {
     "contact": Section(doc="The contact law; required unless [packing] file (which "
                            "holds its law), and then an error.", variant="law",
                        keys=_CONTACT_KEYS),
-    "test": Section(doc="The compression: axial strain in increments at constant "
-                        "lateral stress.", keys={
+    "test": Section(doc="The compression: axial strain in increments, the lateral "
+                        "sides as `kind` says.", keys={
+        "kind": Key("str", default="drained", choices=KINDS,
+                    doc="drained: the lateral stress held at confining; undrained: "
+                        "constant volume (saturated, no drainage, water and grains "
+                        "far stiffer than the packing), the excess pore pressure read "
+                        "from the stress path at a constant total lateral stress "
+                        "(confining minus the lateral effective stress); oedometric: "
+                        "no lateral strain (K0 compression)."),
         "axial_strain": Key("float", default=0.1, range=Range(0.0, 0.5, False),
                             doc="Total axial compressive strain (engineering)."),
         "increment": Key("float", default=1e-3, range=_POSITIVE,
@@ -463,8 +473,11 @@ def compress(cfg, on_increment=None, packing=None):
     if on_increment is not None:
         on_increment(0)
     t = cfg["test"]
-    curves = _curves(rve, confining, _targets(t), on_increment)
-    summary = _summarize(curves, rve, confining, t["increment"])
+    curves = _curves(rve, confining, _targets(t), on_increment, t["kind"])
+    summarize = {"drained": _summarize, "undrained": _summarize_undrained,
+                 "oedometric": _summarize_oedometric}[t["kind"]]
+    summary = summarize(curves, rve, confining, t["increment"])
+    summary["kind"] = t["kind"]
     summary["wall_time"] = time.perf_counter() - t0
     return CompressionResult(curves, summary, cfg, generated)
 
@@ -475,8 +488,11 @@ def _targets(t):
     return np.minimum(np.arange(1, n_inc + 1) * t["increment"], t["axial_strain"])
 
 
-def _curves(rve, confining, targets, on_increment):
-    """Axial increments to the engineering strains ``targets``; the curves."""
+def _curves(rve, confining, targets, on_increment, kind="drained"):
+    """Axial increments to the engineering strains ``targets``, the lateral sides
+    held as ``kind`` says; the curves."""
+    from dem.rve import PackingApart
+
     d = rve.dim
     axial = d - 1
     mask = np.arange(d) != axial
@@ -487,7 +503,20 @@ def _curves(rve, confining, targets, on_increment):
         f_rel = rve.deformation @ f0_inv
         deps = np.zeros((d, d))
         deps[axial, axial] = (1.0 - target) / f_rel[axial, axial] - 1.0
-        stress = rve.load(deps, stress=lateral, mask=mask)
+        if kind == "drained":
+            stress = rve.load(deps, stress=lateral, mask=mask)
+        else:  # strain control: no lateral strain, or the lateral strain of no volume
+            stretch = 1.0 if kind == "oedometric" else (1.0 - target) ** (-1.0 / (d - 1))
+            for i in np.flatnonzero(mask):
+                deps[i, i] = stretch / f_rel[i, i] - 1.0
+            try:
+                stress = rve.load(deps)
+            except PackingApart:
+                if kind != "undrained":
+                    raise
+                # liquefied: no effective stress left; the test ends at this state
+                rows.append(_record(rve, rve.stress(), f0_inv, rve.last_relax_steps))
+                break
         rows.append(_record(rve, stress, f0_inv, rve.last_relax_steps))
         if on_increment is not None:
             on_increment(k)
@@ -495,6 +524,12 @@ def _curves(rve, confining, targets, on_increment):
     p, q = stress_invariants(curves["stress"])
     curves.update(p=p, q=q, stress_ratio=q / p,
                   friction_angle=friction_angle(q / p, d))
+    sig = -curves["stress"]  # compression positive
+    lat = np.mean([sig[:, i, i] for i in np.flatnonzero(mask)], axis=0)
+    if kind == "undrained":  # the cell pressure holds the total lateral stress
+        curves["excess_pore_pressure"] = confining - lat
+    elif kind == "oedometric":
+        curves["k0"] = lat / sig[:, axial, axial]
     return curves
 
 
@@ -528,13 +563,68 @@ def _summarize(c, rve, confining, increment):
             "final_void_ratio": float(c["void_ratio"][-1])}
 
 
+def _summarize_undrained(c, rve, confining, increment):
+    """Peak deviator, phase transformation (the largest excess pore pressure before
+    the end, where the packing turns from contraction to dilation; NaN when the
+    pressure rises to the end or never rises), excess pore pressures and the
+    softening after the peak (q at the end over the peak q; static liquefaction
+    drives it towards 0)."""
+    p, q, ea, u = c["p"], c["q"], c["axial_strain"], c["excess_pore_pressure"]
+    k = int(np.argmax(q))
+    m = int(np.argmax(u))
+    turn = 0 < m < len(u) - 1
+    # liquefied: the packing came apart (the test stopped), or its mean effective
+    # stress fell below 1 % of the start
+    liquefied = bool(p[-1] < 0.01 * p[0])
+    nan = float("nan")
+    return {"dim": rve.dim, "n_particles": int(rve.bodies.n),
+            "particles": grains(rve.bodies), "confining": confining,
+            "initial_void_ratio": float(c["void_ratio"][0]),
+            "peak_deviator": float(q[k]), "peak_axial_strain": float(ea[k]),
+            "peak_mean_stress": float(p[k]),
+            "phase_transformation_mean_stress": float(p[m]) if turn else nan,
+            "phase_transformation_deviator": float(q[m]) if turn else nan,
+            "phase_transformation_axial_strain": float(ea[m]) if turn else nan,
+            "max_excess_pore_pressure": float(u.max()),
+            "final_excess_pore_pressure": float(u[-1]),
+            "final_mean_stress": float(p[-1]), "final_deviator": float(q[-1]),
+            "softening": float(q[-1] / q[k]) if q[k] > 0.0 else nan,
+            "final_friction_angle": float(c["friction_angle"][-1]),
+            "liquefied": liquefied,
+            "liquefaction_axial_strain": float(ea[-1]) if liquefied else nan,
+            "final_axial_strain": float(ea[-1])}
+
+
+def _summarize_oedometric(c, rve, confining, increment):
+    """K0 (the mean over the second half of the increments, and at the end) and the
+    constrained modulus of the last increment."""
+    d = rve.dim
+    sig_a = -c["stress"][:, d - 1, d - 1]
+    half = c["k0"][1:][len(c["k0"][1:]) // 2:]
+    ea = c["axial_strain"]
+    return {"dim": d, "n_particles": int(rve.bodies.n), "particles": grains(rve.bodies),
+            "confining": confining, "initial_void_ratio": float(c["void_ratio"][0]),
+            "k0": float(half.mean()), "final_k0": float(c["k0"][-1]),
+            "final_axial_stress": float(sig_a[-1]),
+            "constrained_modulus": float((sig_a[-1] - sig_a[-2]) / (ea[-1] - ea[-2])),
+            "final_void_ratio": float(c["void_ratio"][-1])}
+
+
 # --------------------------------------------------------------------------- output
 #: unit of each curve that has one (the others are dimensionless)
-UNITS = {"stress": "Pa", "p": "Pa", "q": "Pa", "friction_angle": "deg"}
+UNITS = {"stress": "Pa", "p": "Pa", "q": "Pa", "friction_angle": "deg",
+         "excess_pore_pressure": "Pa"}
 #: unit of each summary value that has one
 SUMMARY_UNITS = {"confining": "Pa", "peak_friction_angle": "deg",
                   "dilatancy_angle": "deg", "critical_friction_angle": "deg",
-                  "critical_dilatancy_angle": "deg", "wall_time": "s"}
+                  "critical_dilatancy_angle": "deg", "wall_time": "s",
+                  "peak_deviator": "Pa", "peak_mean_stress": "Pa",
+                  "phase_transformation_mean_stress": "Pa",
+                  "phase_transformation_deviator": "Pa",
+                  "max_excess_pore_pressure": "Pa", "final_excess_pore_pressure": "Pa",
+                  "final_mean_stress": "Pa", "final_deviator": "Pa",
+                  "final_friction_angle": "deg", "final_axial_stress": "Pa",
+                  "constrained_modulus": "Pa"}
 
 
 def _write_h5(path, result):
@@ -562,6 +652,17 @@ def _write_figure(path, result):
     from dem.io.hdf5 import save_figure
 
     c, s = result.curves, result.summary
+    if s.get("kind", "drained") != "drained":
+        fig = Figure(figsize=(12.0, 3.6), layout="constrained")
+        FigureCanvasAgg(fig)
+        (_undrained_panels if s["kind"] == "undrained" else _oedometric_panels)(
+            fig.subplots(1, 3), c, s)
+        test = "biaxial" if s["dim"] == 2 else "triaxial"
+        what = f"undrained {test}" if s["kind"] == "undrained" else "oedometric"
+        fig.suptitle(f"{what} test, {s['n_particles']} {s['particles']}, from "
+                     f"{s['confining']:.4g} Pa, e0 = {s['initial_void_ratio']:.3f}")
+        save_figure(fig, path, dpi=120)
+        return
     ea = 100.0 * c["axial_strain"]
     fig = Figure(figsize=(9.0, 3.6), layout="constrained")
     FigureCanvasAgg(fig)
@@ -581,3 +682,39 @@ def _write_figure(path, result):
     fig.suptitle(f"drained {test} test, {s['n_particles']} {s['particles']}, confining "
                  f"{s['confining']:.4g} Pa, e0 = {s['initial_void_ratio']:.3f}")
     save_figure(fig, path, dpi=120)
+
+
+def _undrained_panels(axs, c, s):
+    ea = 100.0 * c["axial_strain"]
+    axs[0].plot(ea, 1e-3 * c["q"], "k-")
+    axs[0].set(xlabel="axial strain [%]", ylabel="deviator q [kPa]")
+    axs[1].plot(1e-3 * c["p"], 1e-3 * c["q"], "k-", label="effective stress path")
+    if np.isfinite(s["phase_transformation_mean_stress"]):
+        axs[1].plot([1e-3 * s["phase_transformation_mean_stress"]],
+                    [1e-3 * s["phase_transformation_deviator"]], "bs",
+                    label="phase transformation")
+    axs[1].plot([1e-3 * s["peak_mean_stress"]], [1e-3 * s["peak_deviator"]], "ro",
+                label="peak q")
+    axs[1].set(xlabel="mean effective stress p' [kPa]", ylabel="deviator q [kPa]")
+    axs[1].legend(loc="best", fontsize=8)
+    axs[2].plot(ea, 1e-3 * c["excess_pore_pressure"], "k-")
+    axs[2].axhline(0.0, color="0.6", lw=0.8)
+    axs[2].set(xlabel="axial strain [%]", ylabel="excess pore pressure [kPa]")
+    for ax in axs:
+        ax.grid(alpha=0.3)
+
+
+def _oedometric_panels(axs, c, s):
+    ea = 100.0 * c["axial_strain"]
+    d = s["dim"]
+    sig_a = -c["stress"][:, d - 1, d - 1]
+    axs[0].plot(ea, 1e-3 * sig_a, "k-")
+    axs[0].set(xlabel="axial strain [%]", ylabel="axial effective stress [kPa]")
+    axs[1].semilogx(1e-3 * sig_a, c["void_ratio"], "k-")
+    axs[1].set(xlabel="axial effective stress [kPa]", ylabel="void ratio e")
+    axs[2].plot(ea[1:], c["k0"][1:], "k-")
+    axs[2].axhline(s["k0"], color="b", ls="--", label=f"K0 = {s['k0']:.3f}")
+    axs[2].set(xlabel="axial strain [%]", ylabel="K0 = lateral / axial stress")
+    axs[2].legend(loc="best", fontsize=8)
+    for ax in axs:
+        ax.grid(alpha=0.3)

@@ -270,3 +270,9 @@ def test_docs_hold_the_generated_reference():
     page = (ROOT / "docs" / "batch.md").read_text()
     assert schema_markdown(BATCH_SCHEMA).strip() in page, (
         "docs/batch.md is out of date: paste schema_markdown(BATCH_SCHEMA) into it")
+
+
+def test_a_batch_of_undrained_tests_is_refused_in_one_line(tmp_path):
+    path = _write(tmp_path, SWEEP.replace("[base.test]\n", "[base.test]\nkind = \"undrained\"\n"))
+    with pytest.raises(SceneError, match=r"kind = \"undrained\": a batch sweeps drained"):
+        load_sweep(path)

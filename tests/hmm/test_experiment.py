@@ -288,7 +288,81 @@ def test_example_is_valid():
         validate_config({**SMALL, "solver": {}})
 
 
+def test_undrained_example_is_valid():
+    cfg = load_config(ROOT / "examples" / "rve_undrained.toml")
+    assert cfg["test"]["kind"] == "undrained"
+
+
 def test_docs_hold_the_generated_reference():
     page = (ROOT / "docs" / "rve.md").read_text()
     assert schema_markdown(RVE_SCHEMA).strip() in page, (
         "docs/rve.md is out of date: paste schema_markdown(RVE_SCHEMA) into it")
+
+
+# --------------------------------------------------------------------------- other tests
+@pytest.fixture(scope="module")
+def undrained(tmp_path_factory):
+    out = tmp_path_factory.mktemp("undrained")
+    data = copy.deepcopy(SMALL)
+    data["test"].update(kind="undrained", axial_strain=0.03)
+    return run_experiment(_config(data, out), progress=False), out
+
+
+def test_undrained_test_holds_the_volume_and_reads_the_pore_pressure(undrained):
+    res, _ = undrained
+    c, s = res.curves, res.summary
+    assert np.abs(c["volumetric_strain"]).max() < 1e-12
+    lateral = -c["stress"][:, 0, 0]
+    assert np.array_equal(c["excess_pore_pressure"], P0 - lateral)
+    assert c["excess_pore_pressure"][0] == pytest.approx(0.0, abs=1e-3 * P0)
+    assert s["kind"] == "undrained" and s["peak_deviator"] == c["q"].max()
+
+
+def test_a_packing_that_dilates_drained_sucks_water_undrained(biaxial, undrained):
+    """The dense packing dilates in the drained test; held at constant volume it
+    pulls its water into suction and its mean effective stress climbs."""
+    assert biaxial[0].summary["final_volumetric_strain"] < 0.0
+    s = undrained[0].summary
+    assert s["final_excess_pore_pressure"] < 0.0
+    assert s["final_mean_stress"] > P0
+    assert s["final_deviator"] > 0.0
+
+
+def test_oedometric_test_has_no_lateral_strain_and_a_plausible_k0(tmp_path):
+    data = copy.deepcopy(SMALL)
+    data["test"].update(kind="oedometric", axial_strain=0.006, increment=2e-3)
+    res = run_experiment(_config(data, tmp_path), progress=False)
+    c, s = res.curves, res.summary
+    assert c["volumetric_strain"] == pytest.approx(c["axial_strain"], abs=1e-12)
+    sig_a = -c["stress"][:, 1, 1]
+    assert np.all(np.diff(sig_a) > 0.0)
+    assert 0.2 < s["k0"] < 0.9 and 0.2 < s["final_k0"] < 0.9
+    assert s["constrained_modulus"] > 0.0
+    with h5py.File(tmp_path / "rve_test.h5", "r") as f:
+        assert f.attrs["kind"] == "oedometric" and "k0" in f
+
+
+def test_cli_prints_the_undrained_and_oedometric_summaries(undrained, tmp_path, capsys):
+    cfg_text = GENERATED + "[test]\nkind = \"undrained\"\naxial_strain = 0.006\n" \
+        "increment = 0.003\n"
+    assert _cmd(_write(tmp_path, cfg_text)) == 0
+    out = capsys.readouterr().out
+    assert "undrained biaxial test (constant volume)" in out
+    assert "excess pore pressure" in out and "phase transformation" in out
+    path = _write(tmp_path, cfg_text.replace("undrained", "oedometric"), "oedo.toml")
+    assert cmd_rve(argparse.Namespace(file=path, output=None, overwrite=True)) == 0
+    assert "K0" in capsys.readouterr().out
+
+
+def test_the_undrained_example_liquefies_and_reports_it(tmp_path):
+    """The example's loose 200-disk packing (seed 2) loses its effective stress at
+    constant volume: the test ends there with the state recorded (the water carries
+    the whole confining pressure) instead of failing on a packing that came apart."""
+    cfg = load_config(ROOT / "examples" / "rve_undrained.toml")
+    cfg["output"]["dir"] = str(tmp_path)
+    res = run_experiment(cfg, progress=False)
+    s, c = res.summary, res.curves
+    assert s["liquefied"] and s["final_mean_stress"] < 0.01 * P0
+    assert c["excess_pore_pressure"][-1] == pytest.approx(P0, rel=0.01)
+    assert s["softening"] < 0.01 and s["peak_deviator"] > 0.3 * P0
+    assert np.abs(c["volumetric_strain"]).max() < 1e-12

@@ -56,6 +56,10 @@ from .farm import MicroFailure
 
 log = logging.getLogger(__name__)
 
+#: a pore pressure beyond this multiple of the problem's pressure scale
+#: (:attr:`BiotSolver.pressure_bound`) is a diverging solution: the step is cut
+PRESSURE_BOUND = 1e3
+
 #: how the two fields are solved in each iteration (:class:`BiotSolver`)
 COUPLINGS = ("monolithic", "fixed_stress")
 
@@ -236,11 +240,15 @@ class PorousMacro:
         c_v)`` with ``h`` the shortest element edge: a shorter step after a sudden
         load or a jump of a drained pressure leaves the pressure's boundary layer
         thinner than an element, and the pressure overshoots next to it."""
+        h = self.shortest_edge()
+        return h * h / (6.0 * self.consolidation_coefficient(tangent))
+
+    def shortest_edge(self):
+        """The shortest element edge of the mesh [m]."""
         mesh = self.macro.mesh
         edges = mesh.facets if self.macro.dim == 2 else mesh.edges
-        h = float(np.min(np.linalg.norm(mesh.p[:, edges[0]] - mesh.p[:, edges[1]],
-                                        axis=0)))
-        return h * h / (6.0 * self.consolidation_coefficient(tangent))
+        return float(np.min(np.linalg.norm(mesh.p[:, edges[0]] - mesh.p[:, edges[1]],
+                                           axis=0)))
 
     def fixed_stress_mass(self, tangent):
         """``int q alpha^2 / K_dr p`` (sparse): the fixed-stress split's estimate of
@@ -343,6 +351,22 @@ class BiotSolver(Solver):
         self._free_p = np.setdiff1d(np.arange(porous.n_p), porous.p_dofs)
         self._tie_up = tie_map(n_u + porous.n_p, supports.ties, self._fixed) \
             if supports.ties else None
+        #: [Pa] a trial pore pressure beyond it cuts the step: PRESSURE_BOUND x the
+        #: largest of the initial and drained pressures, the micro models' initial
+        #: stresses, the largest external nodal force over h^(d-1) and the largest
+        #: prescribed displacement over h times the stiffest tangent (h the shortest
+        #: element edge): far above any pressure the loads can make
+        h = porous.shortest_edge()
+        forces = max(np.abs(self.f_const).max(initial=0.0),
+                     np.abs(self.f_ramp).max(initial=0.0))
+        moved = np.abs(supports.values).max(initial=0.0) \
+            if supports.path is None else 0.0
+        scale = max(abs(porous.fluid.initial_pressure),
+                    np.abs(porous.p_values).max(initial=0.0),
+                    np.abs(self.sigma).max(initial=0.0),
+                    forces / h ** (self.macro.dim - 1),
+                    moved / h * np.abs(self.tangent).max(initial=0.0), 1.0)
+        self.pressure_bound = PRESSURE_BOUND * scale
 
     def advance(self, dt, on_iteration=None):
         """Take the clock from ``t`` to ``t + dt`` [s], cutting as needed; with a
@@ -408,6 +432,18 @@ class BiotSolver(Solver):
                           self.supports.dofs, tie=self._tie)
         return np.concatenate([du, dp])
 
+    def _check_pressure(self, p):
+        """Cut the step if a trial pore pressure is not finite or beyond
+        :attr:`pressure_bound`."""
+        worst = float(np.abs(p).max(initial=0.0))
+        if not math.isfinite(worst):
+            raise _NotConverged("the pore pressure is not finite")
+        if worst > self.pressure_bound:
+            raise _NotConverged(
+                f"pore pressure {worst:.4g} Pa is beyond {self.pressure_bound:.4g} Pa "
+                f"({PRESSURE_BOUND:g} x the problem's pressure scale): the coupled "
+                f"solution diverges")
+
     def _attempt(self, h, nominal, on_iteration):
         macro, farm, st, por = self.macro, self.farm, self.settings, self.porous
         sup = self.supports
@@ -429,6 +465,7 @@ class BiotSolver(Solver):
         prev, omega = None, 1.0
         for it in range(1, st.max_iterations + 1):
             du, p = z[:n_u], z[n_u:]
+            self._check_pressure(p)
             try:
                 sig, c = farm.trial(macro.increment_gradient(self.u, du))
             except MicroFailure as err:

@@ -6,7 +6,7 @@ steady Darcy flow through an anisotropic column."""
 import numpy as np
 import pytest
 
-from hmm.coupling import SolverSettings, Supports
+from hmm.coupling import SolverError, SolverSettings, Supports
 from hmm.farm import SerialFarm
 from hmm.macro import Macro, structured_mesh
 from hmm.micro import LinearElastic
@@ -233,3 +233,29 @@ def test_fixed_stress_split_reaches_the_monolithic_answer():
     assert mono.iterations == [1] * 5 and min(split.iterations) > 2
     with pytest.raises(ValueError, match="coupling must be"):
         BiotSolver(*column()[:3], TimeSchedule(end=1.0, steps=1), coupling="staggered")
+
+
+class _NanStress(LinearElastic):
+    def trial(self, deps):
+        sig, c = super().trial(deps)
+        return sig * np.nan, c
+
+
+@pytest.mark.parametrize("model,bound,message", [
+    (LinearElastic, 1.0, r"pore pressure .* Pa is beyond 1 Pa"),
+    (_NanStress, None, "non-finite")])
+def test_a_diverging_pressure_stops_the_run_at_the_last_converged_step(model, bound,
+                                                                        message):
+    """A pore pressure beyond the solver's bound (here lowered to 1 Pa to trip it) or
+    a micro model answering NaN: every cut fails, the solver stops with the reason
+    and keeps the last converged state."""
+    porous, _, sup, f = column(cells=4)
+    farm = SerialFarm([model(E, NU) for _ in range(porous.macro.n_gp)])
+    s = BiotSolver(porous, farm, sup, TimeSchedule(end=1.0, steps=4), f_ramp=f,
+                   settings=SolverSettings(max_iterations=8, min_step=0.25))
+    assert s.pressure_bound > 100 * Q  # by default far above what the load makes
+    if bound is not None:
+        s.pressure_bound = bound
+    with pytest.raises(SolverError, match=message):
+        s.advance(0.25)
+    assert s.t == 0.0 and np.all(s.p == 0.0) and np.all(s.u == 0.0)

@@ -249,6 +249,45 @@ def cmd_rve(args):
               f"  wall time                {s['wall_time']:.3g} s\n"
               f"  output                   {files}")
         return 0
+    if s["kind"] == "isotropic":
+        print(f"hmm rve {args.file}: isotropic compression to {s['p_max']:.4g} Pa and "
+              f"unloading, {s['n_particles']} {s['particles']}\n"
+              f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
+              f"  compression index        {s['compression_index']:.4g} (-de/dln p, "
+              f"loading)\n"
+              f"  swelling index           {s['swelling_index']:.4g} (unloading)\n"
+              f"  initial bulk modulus     {s['bulk_modulus']:.4g} Pa\n"
+              f"  volumetric strain        {100 * s['final_volumetric_strain']:.4f} % "
+              f"left after unloading\n"
+              f"  wall time                {s['wall_time']:.3g} s\n"
+              f"  output                   {files}")
+        return 0
+    if s["kind"] == "simple_shear":
+        print(f"hmm rve {args.file}: simple shear at {s['confining']:.4g} Pa normal "
+              f"stress, {s['n_particles']} {s['particles']}\n"
+              f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
+              f"  peak friction angle      {s['peak_friction_angle']:.2f} deg "
+              f"(tau/sigma_n = {s['peak_stress_ratio']:.4f} at shear strain "
+              f"{100 * s['peak_shear_strain']:.2f} %)\n"
+              f"  dilation angle at peak   {s['dilation_angle']:.2f} deg\n"
+              f"  late friction angle      {s['critical_friction_angle']:.2f} deg "
+              f"(last 20 %)\n"
+              f"  wall time                {s['wall_time']:.3g} s\n"
+              f"  output                   {files}")
+        return 0
+    if s["kind"] == "cyclic":
+        liq = (f"liquefied after {s['cycles_to_liquefaction']:.2f} cycles"
+               if s["liquefied"] else f"not liquefied in {s['cycles_run']:.2f} cycles")
+        print(f"hmm rve {args.file}: cyclic undrained {kind} test, strain amplitude "
+              f"{100 * s['strain_amplitude']:.3g} %, {s['n_particles']} "
+              f"{s['particles']}, from {s['confining']:.4g} Pa\n"
+              f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
+              f"  pore pressure ratio r_u  {s['final_pore_pressure_ratio']:.3f} at the "
+              f"end (largest {s['max_pore_pressure_ratio']:.3f})\n"
+              f"  {liq}\n"
+              f"  wall time                {s['wall_time']:.3g} s\n"
+              f"  output                   {files}")
+        return 0
     if s["kind"] == "oedometric":
         print(f"hmm rve {args.file}: oedometric test, {s['n_particles']} "
               f"{s['particles']}, from {s['confining']:.4g} Pa\n"

@@ -45,7 +45,7 @@ __all__ = ["RVE_SCHEMA", "SUMMARY_UNITS", "UNITS", "CompressionResult", "compres
            "output_paths", "run_experiment", "stress_invariants", "validate_config"]
 
 #: the tests of ``[test] kind``
-KINDS = ("drained", "undrained", "oedometric")
+KINDS = ("drained", "undrained", "oedometric", "isotropic", "simple_shear", "cyclic")
 
 _POSITIVE = Range(0.0, lo_closed=False)
 _NONNEGATIVE = Range(0.0)
@@ -100,9 +100,20 @@ RVE_SCHEMA = {
                         "far stiffer than the packing), the excess pore pressure read "
                         "from the stress path at a constant total lateral stress "
                         "(confining minus the lateral effective stress); oedometric: "
-                        "no lateral strain (K0 compression)."),
+                        "no lateral strain (K0 compression); isotropic: the mean "
+                        "stress up to p_max and back; simple_shear: shear strain at a "
+                        "constant normal stress and no lateral strain; cyclic: "
+                        "undrained axial strain cycles of amplitude axial_strain."),
+        "p_max": Key("float", "Pa", range=_POSITIVE,
+                     doc="isotropic: the largest mean stress (default 4 x confining)."),
+        "steps": Key("int", default=10, range=Range(1.0),
+                     doc="isotropic: stress increments each way (geometric)."),
+        "cycles": Key("int", default=5, range=Range(1.0),
+                      doc="cyclic: number of strain cycles."),
         "axial_strain": Key("float", default=0.1, range=Range(0.0, 0.5, False),
-                            doc="Total axial compressive strain (engineering)."),
+                            doc="Total axial compressive strain (engineering); "
+                                "simple_shear: the total shear strain; cyclic: the "
+                                "strain amplitude."),
         "increment": Key("float", default=1e-3, range=_POSITIVE,
                          doc="Axial strain per recorded increment."),
         "confining": Key("float", "Pa", range=_POSITIVE,
@@ -191,6 +202,7 @@ def validate_config(data, source="<rve>", base_dir="."):
         if t["confining"] is None:
             t["confining"] = p["p0"]
         check_shape(ctx, p, p["dim"])
+    _check_kind(ctx, data, t)
     if t["increment"] > t["axial_strain"]:
         ctx.fail(f"increment = {_fmt(t['increment'])} must not exceed axial_strain = "
                  f"{_fmt(t['axial_strain'])}", "[test]")
@@ -198,6 +210,20 @@ def validate_config(data, source="<rve>", base_dir="."):
         stem = Path(source).stem.strip("<>") or "rve"
         cfg["output"]["dir"] = str(Path("output") / stem)
     return cfg
+
+
+def _check_kind(ctx, data, t):
+    """The keys of one kind of test are not given to another; p_max exceeds the
+    confining pressure."""
+    raw_test = data.get("test") if isinstance(data.get("test"), dict) else {}
+    for key, kind in (("p_max", "isotropic"), ("steps", "isotropic"),
+                      ("cycles", "cyclic")):
+        if key in raw_test and t["kind"] != kind:
+            ctx.fail(f"{key} applies to kind = \"{kind}\", not \"{t['kind']}\"", "[test]")
+    if t["kind"] == "isotropic" and t["p_max"] is not None and t["confining"] is not None \
+            and t["p_max"] <= t["confining"]:
+        ctx.fail(f"p_max = {_fmt(t['p_max'])} Pa must exceed the confining pressure "
+                 f"{_fmt(t['confining'])} Pa", "[test]")
 
 
 def check_shape(ctx, p, dim, where="[packing]"):
@@ -415,7 +441,7 @@ def run_experiment(cfg, out_dir=None, overwrite=False, progress=None):
     packing = make_packing(cfg)
     rve, generated = packing[0], packing[2]
     consolidated = rve.snapshot() if generated else None
-    bar = progress_bar(len(_targets(cfg["test"])), progress, min_steps=1,
+    bar = progress_bar(len(_increments(cfg["test"], 2, 1.0)), progress, min_steps=1,
                        unit="increment")
     shown = None if bar is None else (lambda k: bar.update(k - bar.n))  # bar at k
     try:
@@ -473,9 +499,11 @@ def compress(cfg, on_increment=None, packing=None):
     if on_increment is not None:
         on_increment(0)
     t = cfg["test"]
-    curves = _curves(rve, confining, _targets(t), on_increment, t["kind"])
+    curves = _curves(rve, confining, _increments(t, rve.dim, confining), on_increment,
+                     t["kind"])
     summarize = {"drained": _summarize, "undrained": _summarize_undrained,
-                 "oedometric": _summarize_oedometric}[t["kind"]]
+                 "oedometric": _summarize_oedometric, "isotropic": _summarize_isotropic,
+                 "simple_shear": _summarize_shear, "cyclic": _summarize_cyclic}[t["kind"]]
     summary = summarize(curves, rve, confining, t["increment"])
     summary["kind"] = t["kind"]
     summary["wall_time"] = time.perf_counter() - t0
@@ -488,35 +516,44 @@ def _targets(t):
     return np.minimum(np.arange(1, n_inc + 1) * t["increment"], t["axial_strain"])
 
 
-def _curves(rve, confining, targets, on_increment, kind="drained"):
-    """Axial increments to the engineering strains ``targets``, the lateral sides
-    held as ``kind`` says; the curves."""
+def _increments(t, d, confining):
+    """What each increment of a ``[test]`` does: ``(kind, value)`` pairs, ``value``
+    the engineering axial strain (drained, undrained, oedometric, cyclic), the shear
+    strain (simple_shear) or the mean stress [Pa] (isotropic) at its end."""
+    kind = t["kind"]
+    if kind == "isotropic":
+        top = t["p_max"] if t["p_max"] is not None else 4.0 * confining
+        up = confining * (top / confining) ** (np.arange(1, t["steps"] + 1) / t["steps"])
+        return [(kind, p) for p in np.concatenate([up, up[-2::-1], [confining]])]
+    if kind == "cyclic":  # a triangle wave 0 -> A -> -A -> A ... -> 0
+        amp, n = t["axial_strain"], math.ceil(t["axial_strain"] / t["increment"] - 1e-9)
+        quarter = amp * np.arange(1, n + 1) / n
+        cycle = np.concatenate([quarter, amp - quarter, -quarter, -amp + quarter])
+        return [(kind, e) for e in np.tile(cycle, t["cycles"])]
+    return [(kind, e) for e in _targets(t)]
+
+
+def _curves(rve, confining, increments, on_increment, kind="drained"):
+    """Run the ``increments`` (:func:`_increments`), the lateral sides held as
+    ``kind`` says; the curves."""
     from dem.rve import PackingApart
 
     d = rve.dim
     axial = d - 1
-    mask = np.arange(d) != axial
-    lateral = np.full(d, -confining)
+    lateral_axes = np.arange(d) != axial
     f0_inv = np.linalg.inv(rve.deformation)
     rows = [_record(rve, rve.stress(), f0_inv, 0)]
-    for k, target in enumerate(targets, 1):
+    for k, (_, value) in enumerate(increments, 1):
         f_rel = rve.deformation @ f0_inv
-        deps = np.zeros((d, d))
-        deps[axial, axial] = (1.0 - target) / f_rel[axial, axial] - 1.0
-        if kind == "drained":
-            stress = rve.load(deps, stress=lateral, mask=mask)
-        else:  # strain control: no lateral strain, or the lateral strain of no volume
-            stretch = 1.0 if kind == "oedometric" else (1.0 - target) ** (-1.0 / (d - 1))
-            for i in np.flatnonzero(mask):
-                deps[i, i] = stretch / f_rel[i, i] - 1.0
-            try:
-                stress = rve.load(deps)
-            except PackingApart:
-                if kind != "undrained":
-                    raise
-                # liquefied: no effective stress left; the test ends at this state
-                rows.append(_record(rve, rve.stress(), f0_inv, rve.last_relax_steps))
-                break
+        deps, target, mask = _increment(kind, value, f_rel, confining, d)
+        try:
+            stress = rve.load(deps, stress=target, mask=mask)
+        except PackingApart:
+            if kind not in ("undrained", "cyclic"):
+                raise
+            # liquefied: no effective stress left; the test ends at this state
+            rows.append(_record(rve, rve.stress(), f0_inv, rve.last_relax_steps))
+            break
         rows.append(_record(rve, stress, f0_inv, rve.last_relax_steps))
         if on_increment is not None:
             on_increment(k)
@@ -525,18 +562,48 @@ def _curves(rve, confining, targets, on_increment, kind="drained"):
     curves.update(p=p, q=q, stress_ratio=q / p,
                   friction_angle=friction_angle(q / p, d))
     sig = -curves["stress"]  # compression positive
-    lat = np.mean([sig[:, i, i] for i in np.flatnonzero(mask)], axis=0)
-    if kind == "undrained":  # the cell pressure holds the total lateral stress
+    lat = np.mean([sig[:, i, i] for i in np.flatnonzero(lateral_axes)], axis=0)
+    if kind in ("undrained", "cyclic"):  # the cell pressure holds the total lateral
         curves["excess_pore_pressure"] = confining - lat
     elif kind == "oedometric":
         curves["k0"] = lat / sig[:, axial, axial]
+    elif kind == "simple_shear":
+        curves["shear_strain"] = np.array([r["shear"] for r in rows])
+        curves["shear_stress"] = curves["stress"][:, 0, axial]
+        curves["normal_stress"] = sig[:, axial, axial]
+        curves["normal_strain"] = curves["axial_strain"]
+    curves.pop("shear")
+    if kind == "cyclic":
+        curves["amplitude"] = float(max(abs(v) for _, v in increments))
     return curves
+
+
+def _increment(kind, value, f_rel, confining, d):
+    """``(deps, stress target, mask)`` of one increment to ``value``."""
+    axial = d - 1
+    deps = np.zeros((d, d))
+    if kind == "isotropic":
+        return deps, np.full(d, -value), np.ones(d, bool)
+    lateral = np.flatnonzero(np.arange(d) != axial)
+    if kind == "simple_shear":  # shear x along the last axis, normal stress held
+        deps[0, axial] = (value - f_rel[0, axial]) / f_rel[axial, axial]
+        mask = np.zeros(d, bool)
+        mask[axial] = True
+        return deps, np.where(mask, -confining, 0.0), mask
+    deps[axial, axial] = (1.0 - value) / f_rel[axial, axial] - 1.0
+    if kind == "drained":
+        return deps, np.full(d, -confining), np.arange(d) != axial
+    # strain control: no lateral strain, or the lateral strain of no volume
+    stretch = 1.0 if kind == "oedometric" else (1.0 - value) ** (-1.0 / (d - 1))
+    for i in lateral:
+        deps[i, i] = stretch / f_rel[i, i] - 1.0
+    return deps, None, None
 
 
 def _record(rve, stress, f0_inv, steps):
     r = rve.response(tangent=False)
     f_rel = rve.deformation @ f0_inv
-    return {"axial_strain": 1.0 - f_rel[-1, -1],
+    return {"axial_strain": 1.0 - f_rel[-1, -1], "shear": f_rel[0, -1],
             "volumetric_strain": 1.0 - np.linalg.det(f_rel),
             "stress": np.array(stress), "void_ratio": r["void_ratio"],
             "coordination": r["coordination"], "n_contacts": r["n_contacts"],
@@ -610,6 +677,64 @@ def _summarize_oedometric(c, rve, confining, increment):
             "final_void_ratio": float(c["void_ratio"][-1])}
 
 
+def _summarize_isotropic(c, rve, confining, increment):
+    """Compression and swelling indices (slopes of e against ln p on the way up and
+    down), the initial bulk modulus and the volumetric strain left after unloading."""
+    p, e, ev = c["p"], c["void_ratio"], c["volumetric_strain"]
+    top = int(np.argmax(p))
+    up, down = slice(0, top + 1), slice(top, None)
+    return {"dim": rve.dim, "n_particles": int(rve.bodies.n),
+            "particles": grains(rve.bodies), "confining": confining,
+            "initial_void_ratio": float(e[0]), "p_max": float(p[top]),
+            "compression_index": float(-np.polyfit(np.log(p[up]), e[up], 1)[0]),
+            "swelling_index": float(-np.polyfit(np.log(p[down]), e[down], 1)[0]),
+            "bulk_modulus": float((p[1] - p[0]) / (ev[1] - ev[0])),
+            "final_volumetric_strain": float(ev[-1]),
+            "final_void_ratio": float(e[-1])}
+
+
+def _summarize_shear(c, rve, confining, increment):
+    """Peak and late (last 20 %) stress ratios tau / sigma_n with their friction
+    angles, and the dilation angle at the peak (atan of -d eps_n / d gamma)."""
+    g, tau, sn, en = (c["shear_strain"], c["shear_stress"], c["normal_stress"],
+                      c["normal_strain"])
+    ratio = np.divide(tau, sn, out=np.zeros_like(tau), where=sn > 0.0)
+    k = int(np.argmax(ratio))
+    near = np.abs(g - g[k]) <= max(0.01, 2.0 * increment) + 1e-12
+    late = g >= 0.8 * g[-1] - 1e-12
+    slope = np.polyfit(g[near], en[near], 1)[0] if near.sum() > 1 else float("nan")
+    late_ratio = float(ratio[late].mean())
+    return {"dim": rve.dim, "n_particles": int(rve.bodies.n),
+            "particles": grains(rve.bodies), "confining": confining,
+            "initial_void_ratio": float(c["void_ratio"][0]),
+            "peak_stress_ratio": float(ratio[k]), "peak_shear_strain": float(g[k]),
+            "peak_friction_angle": float(np.degrees(np.arctan(ratio[k]))),
+            "dilation_angle": float(np.degrees(np.arctan(-slope))),
+            "critical_stress_ratio": late_ratio,
+            "critical_friction_angle": float(np.degrees(np.arctan(late_ratio))),
+            "final_normal_strain": float(en[-1]),
+            "final_void_ratio": float(c["void_ratio"][-1])}
+
+
+def _summarize_cyclic(c, rve, confining, increment):
+    """Excess pore pressure ratios r_u = du / sigma'_0 and the cycles to liquefaction
+    (p' below 1 % of the start, or the packing apart; NaN if it held)."""
+    p, u, amp = c["p"], c["excess_pore_pressure"], c.pop("amplitude")
+    per_cycle = 4 * math.ceil(amp / increment - 1e-9)
+    liquefied = bool(p[-1] < 0.01 * p[0])
+    done = (len(p) - 1) / per_cycle
+    return {"dim": rve.dim, "n_particles": int(rve.bodies.n),
+            "particles": grains(rve.bodies), "confining": confining,
+            "initial_void_ratio": float(c["void_ratio"][0]),
+            "strain_amplitude": float(amp), "strain_increment": float(increment),
+            "cycles_run": float(done),
+            "liquefied": liquefied,
+            "cycles_to_liquefaction": float(done) if liquefied else float("nan"),
+            "max_pore_pressure_ratio": float(u.max() / confining),
+            "final_pore_pressure_ratio": float(u[-1] / confining),
+            "final_mean_stress": float(p[-1])}
+
+
 # --------------------------------------------------------------------------- output
 #: unit of each curve that has one (the others are dimensionless)
 UNITS = {"stress": "Pa", "p": "Pa", "q": "Pa", "friction_angle": "deg",
@@ -653,12 +778,17 @@ def _write_figure(path, result):
 
     c, s = result.curves, result.summary
     if s.get("kind", "drained") != "drained":
+        panels = {"undrained": _undrained_panels, "oedometric": _oedometric_panels,
+                  "isotropic": _isotropic_panels, "simple_shear": _shear_panels,
+                  "cyclic": _cyclic_panels}[s["kind"]]
         fig = Figure(figsize=(12.0, 3.6), layout="constrained")
         FigureCanvasAgg(fig)
-        (_undrained_panels if s["kind"] == "undrained" else _oedometric_panels)(
-            fig.subplots(1, 3), c, s)
+        panels(fig.subplots(1, 3), c, s)
         test = "biaxial" if s["dim"] == 2 else "triaxial"
-        what = f"undrained {test}" if s["kind"] == "undrained" else "oedometric"
+        what = {"undrained": f"undrained {test}", "oedometric": "oedometric",
+                "isotropic": "isotropic compression and unloading",
+                "simple_shear": "simple shear",
+                "cyclic": f"cyclic undrained {test}"}[s["kind"]]
         fig.suptitle(f"{what} test, {s['n_particles']} {s['particles']}, from "
                      f"{s['confining']:.4g} Pa, e0 = {s['initial_void_ratio']:.3f}")
         save_figure(fig, path, dpi=120)
@@ -716,5 +846,50 @@ def _oedometric_panels(axs, c, s):
     axs[2].axhline(s["k0"], color="b", ls="--", label=f"K0 = {s['k0']:.3f}")
     axs[2].set(xlabel="axial strain [%]", ylabel="K0 = lateral / axial stress")
     axs[2].legend(loc="best", fontsize=8)
+    for ax in axs:
+        ax.grid(alpha=0.3)
+
+
+def _isotropic_panels(axs, c, s):
+    p = 1e-3 * c["p"]
+    axs[0].semilogx(p, c["void_ratio"], "ko-", ms=3)
+    axs[0].set(xlabel="mean stress p [kPa]", ylabel="void ratio e",
+               title=f"λ = {s['compression_index']:.2e}, κ = {s['swelling_index']:.2e}")
+    axs[1].plot(p, 100.0 * c["volumetric_strain"], "ko-", ms=3)
+    axs[1].set(xlabel="mean stress p [kPa]",
+               ylabel="volumetric strain [%] (contraction > 0)")
+    axs[2].plot(np.arange(len(p)), p, "ko-", ms=3)
+    axs[2].set(xlabel="increment", ylabel="mean stress p [kPa]")
+    for ax in axs:
+        ax.grid(alpha=0.3)
+
+
+def _shear_panels(axs, c, s):
+    g = 100.0 * c["shear_strain"]
+    sn = np.where(c["normal_stress"] > 0.0, c["normal_stress"], np.nan)
+    axs[0].plot(g, c["shear_stress"] / sn, "k-")
+    axs[0].set(xlabel="shear strain γ [%]", ylabel="τ / σ_n",
+               title=f"peak φ = {s['peak_friction_angle']:.1f}°")
+    axs[1].plot(g, 100.0 * c["normal_strain"], "k-")
+    axs[1].axhline(0.0, color="0.6", lw=0.8)
+    axs[1].set(xlabel="shear strain γ [%]",
+               ylabel="normal strain [%] (contraction > 0)")
+    axs[2].plot(g, c["void_ratio"], "k-")
+    axs[2].set(xlabel="shear strain γ [%]", ylabel="void ratio e")
+    for ax in axs:
+        ax.grid(alpha=0.3)
+
+
+def _cyclic_panels(axs, c, s):
+    ea = 100.0 * c["axial_strain"]
+    axs[0].plot(ea, 1e-3 * c["q"] * np.sign(c["stress"][:, 0, 0] - c["stress"][:, -1, -1]),
+                "k-", lw=0.8)
+    axs[0].set(xlabel="axial strain [%]", ylabel="deviator [kPa] (compression > 0)")
+    axs[1].plot(1e-3 * c["p"], 1e-3 * c["q"], "k-", lw=0.8)
+    axs[1].set(xlabel="mean effective stress p' [kPa]", ylabel="q [kPa]")
+    per_cycle = 4 * math.ceil(s["strain_amplitude"] / s["strain_increment"] - 1e-9)
+    n = np.arange(len(ea)) / per_cycle
+    axs[2].plot(n, c["excess_pore_pressure"] / s["confining"], "k-")
+    axs[2].set(xlabel="cycles", ylabel="r_u = excess pore pressure / σ'_0")
     for ax in axs:
         ax.grid(alpha=0.3)

@@ -366,3 +366,70 @@ def test_the_undrained_example_liquefies_and_reports_it(tmp_path):
     assert c["excess_pore_pressure"][-1] == pytest.approx(P0, rel=0.01)
     assert s["softening"] < 0.01 and s["peak_deviator"] > 0.3 * P0
     assert np.abs(c["volumetric_strain"]).max() < 1e-12
+
+
+def _run_kind(tmp_path, **test):
+    data = copy.deepcopy(SMALL)
+    data["test"] = test
+    return run_experiment(_config(data, tmp_path), progress=False)
+
+
+def test_isotropic_compression_and_unloading(tmp_path):
+    """The mean stress follows its targets up to p_max and back. The dense packing
+    (consolidated without friction) deforms at its contacts only: it comes back to
+    its void ratio, its compression and swelling indices agree within 1 %. A loose
+    one (consolidated with friction 0.5) is softer and keeps part of its
+    compression."""
+    res = _run_kind(tmp_path / "dense", kind="isotropic", p_max=4e5, steps=4)
+    c, s = res.curves, res.summary
+    want = P0 * 4.0 ** (np.array([0, 1, 2, 3, 4, 3, 2, 1, 0]) / 4)
+    assert c["p"] == pytest.approx(want, rel=2e-3)
+    assert np.all(np.diff(c["void_ratio"][:5]) < 0.0)
+    assert s["compression_index"] == pytest.approx(s["swelling_index"], rel=0.01)
+    assert abs(s["final_volumetric_strain"]) < 1e-5
+    data = copy.deepcopy(SMALL)
+    data["packing"]["consolidation_friction"] = 0.5
+    data["test"] = {"kind": "isotropic", "p_max": 4e5, "steps": 4}
+    loose = run_experiment(_config(data, tmp_path / "loose"), progress=False).summary
+    assert loose["bulk_modulus"] < 0.8 * s["bulk_modulus"]
+    assert loose["final_volumetric_strain"] > 10 * abs(s["final_volumetric_strain"])
+    assert loose["compression_index"] > loose["swelling_index"]
+
+
+def test_simple_shear_holds_the_normal_stress_and_mobilises_friction(tmp_path):
+    """The normal stress stays at the confining pressure, the lateral strain at zero;
+    tau / sigma_n rises to a peak friction angle of a dense frictional packing."""
+    res = _run_kind(tmp_path, kind="simple_shear", axial_strain=0.03, increment=3e-3)
+    c, s = res.curves, res.summary
+    assert c["normal_stress"][1:] == pytest.approx(P0, rel=2e-3)
+    assert c["shear_strain"] == pytest.approx(np.linspace(0.0, 0.03, 11), rel=1e-3)
+    f = c["stress"]
+    assert np.all(c["shear_stress"][1:] > 0.0) and np.allclose(f[:, 0, 1], f[:, 1, 0])
+    assert 10.0 < s["peak_friction_angle"] < 40.0
+    assert s["final_normal_strain"] < 0.0  # the dense packing dilates
+
+
+def test_cyclic_undrained_loading_builds_pore_pressure(tmp_path):
+    """Strain cycles at constant volume: the axial strain follows the triangle wave,
+    the volume never changes, and the cycles raise the excess pore pressure."""
+    res = _run_kind(tmp_path, kind="cyclic", axial_strain=1e-3, increment=5e-4,
+                    cycles=2)
+    c, s = res.curves, res.summary
+    wave = 1e-3 * np.array([0, .5, 1, .5, 0, -.5, -1, -.5, 0, .5, 1, .5, 0, -.5, -1,
+                            -.5, 0])
+    n = len(c["axial_strain"])
+    assert c["axial_strain"] == pytest.approx(wave[:n], abs=1e-12)
+    assert np.abs(c["volumetric_strain"]).max() < 1e-12
+    assert s["max_pore_pressure_ratio"] > 0.0
+    assert s["cycles_run"] == pytest.approx((n - 1) / 8)
+
+
+@pytest.mark.parametrize("test,message", [
+    ({"kind": "drained", "cycles": 3}, 'cycles applies to kind = "cyclic"'),
+    ({"kind": "isotropic", "p_max": 5e4}, "p_max = 50000 Pa must exceed"),
+])
+def test_keys_of_another_kind_are_refused(test, message):
+    data = copy.deepcopy(SMALL)
+    data["test"] = test
+    with pytest.raises(SceneError, match=message):
+        validate_config(data, "small.toml")

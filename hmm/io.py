@@ -27,7 +27,8 @@ means ``darcy_flux_x`` ... [m/s] and ``total_stress_xx`` ... [Pa] (the total str
 ``sigma' - alpha p I``; ``stress_*`` and ``mean_stress`` are then the effective
 ones); ``gauss/pore_pressure``, ``gauss/darcy_flux``, ``gauss/total_stress``; and
 the curve ``time`` [s], ``pore_pressure/max`` and ``pore_pressure/mean`` [Pa]
-(``pore_pressure.png`` shows them with the last field).
+(``pore_pressure.png`` shows them, the field where it is largest and the
+platens' settlements).
 
 ``fields.xdmf`` references it (a temporal collection, one grid per written step; under
 finite kinematics each grid is the deformed mesh, so ParaView shows the real shape);
@@ -101,13 +102,17 @@ class Output:
         Continue the existing file from a checkpoint's step and curve.
     porous : PorousMacro, optional
         The pressure field of a saturated problem.
+    platens : sequence of str
+        Boundaries that move as rigid platens: their displacement is recorded
+        (``displacement/<name>``; no reaction, nothing holds them).
     """
 
     def __init__(self, directory, macro, boundaries, every=1, overwrite=False,
-                 driven=(), restart=None, porous=None):
+                 driven=(), restart=None, porous=None, platens=()):
         self.dir = Path(directory)
         self.macro = macro
         self.porous = porous
+        self.platens = tuple(platens)
         self.boundaries = tuple(boundaries)
         #: (boundary, component) pairs whose displacement is prescribed non-zero:
         #: the load-displacement curves
@@ -116,7 +121,7 @@ class Output:
         self.path = self.dir / "fields.h5"
         self.frames = []  # (group name, load factor)
         self.curve = {k: [] for k in self.curve_names(self.boundaries,
-                                                      porous is not None)}
+                                                      porous is not None, self.platens)}
         self.f, self._kept, self._closed = None, None, False
         if restart is not None:
             self._reopen(*restart)
@@ -141,11 +146,13 @@ class Output:
             self.f.attrs["pressure_element"] = porous.p_element
 
     @staticmethod
-    def curve_names(boundaries, saturated=False):
+    def curve_names(boundaries, saturated=False, platens=()):
         """The series of the load-displacement curve (``/curve/`` of ``fields.h5``),
-        and of a saturated problem's clock and pore pressures."""
+        the platens' displacements, and a saturated problem's clock and pore
+        pressures."""
         return ["load_factor", "iterations", "dem_points"] + [
             f"{kind}/{b}" for b in boundaries for kind in ("displacement", "force")] \
+            + [f"displacement/{b}" for b in platens if b not in boundaries] \
             + (["time", "pore_pressure/max", "pore_pressure/mean"] if saturated else [])
 
     def _reopen(self, step, curve):
@@ -215,6 +222,10 @@ class Output:
             disp = np.array([u[macro.dofs(b, c)].mean() for c in range(d)])
             self.curve[f"displacement/{b}"].append(disp)
             self.curve[f"force/{b}"].append(reactions[b])
+        for b in self.platens:
+            if b not in self.boundaries:
+                self.curve[f"displacement/{b}"].append(
+                    np.array([u[macro.dofs(b, c)].mean() for c in range(d)]))
         if force_frame or step % self.every == 0:
             self._frame(step, solver, measures, iterations)
 
@@ -428,26 +439,43 @@ class Output:
 
     def _pressure_plot(self, plt, c):
         """``pore_pressure.png``: the pore pressure over time (maximum and mean over
-        the nodes) and, in 2D, its field at the last frame on the mesh."""
+        the nodes), in 2D its field on the mesh at the frame where it is largest, and
+        the platens' settlement over time."""
         import matplotlib.tri as mtri
 
         d = self.macro.dim
-        panels = 2 if d == 2 and self.frames else 1
+        field = d == 2 and bool(self.frames)
+        moving = [b for b in self.platens if f"displacement/{b}" in c]
+        panels = 1 + int(field) + int(bool(moving))
         fig, axs = plt.subplots(1, panels, figsize=(5.0 * panels, 4), squeeze=False)
         ax = axs[0, 0]
         t = np.asarray(c["time"])
+        log_time = t.size > 1 and t[t > 0].size and t.max() / t[t > 0].min() > 100.0
         for key, style, label in (("pore_pressure/max", "o-", "largest"),
                                   ("pore_pressure/mean", "s--", "mean over the nodes")):
             ax.plot(t, 1e-3 * np.asarray(c[key]), style, ms=3, label=label)
-        if t.size > 1 and t[t > 0].size and t.max() / t[t > 0].min() > 100.0:
+        if log_time:
             ax.set_xscale("log")
         ax.set_xlabel("time [s]")
         ax.set_ylabel("pore pressure [kPa]")
         ax.grid(alpha=0.3)
         ax.legend()
-        if panels == 2:
+        if moving:
+            ax = axs[0, panels - 1]
+            for b in moving:  # settlement: down along the last axis, positive
+                ax.plot(t, -1e3 * np.asarray(c[f"displacement/{b}"])[:, d - 1], "o-",
+                        ms=3, label=b)
+            if log_time:
+                ax.set_xscale("log")
+            ax.set_xlabel("time [s]")
+            ax.set_ylabel("settlement [mm]")
+            ax.set_title("platens", fontsize=10)
+            ax.grid(alpha=0.3)
+            ax.legend()
+        if field:  # the frame of the largest pore pressure: the most to see
             with h5py.File(self.path, "r") as f:
-                name = self.frames[-1][0]
+                name = max((fr[0] for fr in self.frames),
+                           key=lambda n: np.abs(f[n]["pore_pressure"][()]).max())
                 pn = f[name]["pore_pressure"][()]
                 when = float(f[name].attrs["time"])
             mesh = self.macro.mesh

@@ -62,6 +62,7 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     macro = build_macro(problem)
     supports, f_const, f_ramp, loads = build_loads(problem, macro)
     porous, schedule = build_porous(problem, macro)
+    platens = tuple(dict.fromkeys(c["boundary"] for c in problem["platen"]))
     say(f"mesh: {macro.n_elems} {macro.element} elements, {macro.n_dofs} dofs"
         + (f" + {porous.n_p} pore pressures ({porous.p_element})" if porous else "")
         + f", {macro.n_gp} Gauss points"
@@ -73,13 +74,13 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     try:  # every rank opens the checkpoint: each reads its own points from it
         if restart:
             ck = Checkpoint(Path(directory) / "checkpoint.h5", problem)
-            ck.check(macro, Output.curve_names(supports.boundaries, porous is not None),
-                     porous, schedule)
+            ck.check(macro, Output.curve_names(supports.boundaries, porous is not None,
+                                               platens), porous, schedule)
         if rank == 0:
             out = Output(directory, macro, supports.boundaries, problem["output"]["every"],
                          overwrite=overwrite, driven=driven,
                          restart=(ck.step, ck.curve()) if ck is not None else None,
-                         porous=porous)
+                         porous=porous, platens=platens)
     except (FileExistsError, FileNotFoundError, ValueError) as err:
         refused = err
     if comm is not None:

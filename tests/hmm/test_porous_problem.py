@@ -277,3 +277,28 @@ def test_hmm_run_refuses_bad_saturated_files_in_one_line(tmp_path, edit, message
     r = _hmm("run", "c.toml", "-o", "out", cwd=tmp_path)
     assert r.returncode == 2 and message in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "out").exists()
+
+
+def test_footing_consolidation_example_at_small_size(tmp_path):
+    """examples/footing_consolidation.toml at small size (4 x 4 cells, 20-disk RVEs,
+    4 time steps): the water under the footing first carries most of its load, then
+    drains; the footing settles at once and keeps settling while it drains."""
+    from hmm.problem import load_problem
+
+    text = (ROOT / "examples" / "footing_consolidation.toml").read_text()
+    for a, b in (("cells = [10, 10]", "cells = [4, 4]"), ("count = 100", "count = 20"),
+                 ("steps = 20 ", "steps = 4 ")):
+        assert a in text
+        text = text.replace(a, b)
+    (tmp_path / "f.toml").write_text(text)
+    problem = load_problem(tmp_path / "f.toml")
+    run_problem(problem, tmp_path / "out", progress=False)
+    with h5py.File(tmp_path / "out" / "fields.h5", "r") as f:
+        settle = -f["curve/displacement/footing"][:, 1]
+        pmax = f["curve/pore_pressure/max"][()]
+        time = f["curve/time"][()]
+    assert time[-1] == pytest.approx(1000.0) and settle[0] == 0.0
+    assert np.all(np.diff(settle) > 0.0)  # settles at once, then keeps settling
+    assert settle[-1] > 1.5 * settle[1]
+    assert 0.5e5 < pmax[1] <= 1e5  # the water carries most of the 100 kPa at first
+    assert pmax[-1] < 0.05e5  # and has drained at the end

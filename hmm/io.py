@@ -301,7 +301,7 @@ class Output:
         """A saturated problem's fields in frame group ``g``."""
         por, d = self.porous, self.macro.dim
         g.create_dataset("pore_pressure", data=por.nodal_pressure(solver.p))
-        flux = por.darcy_flux(solver.p)
+        flux = por.darcy_flux(solver.p, solver.u)
         total = solver.total_stress()
         for a in range(d):
             g.create_dataset(f"darcy_flux_{_AXES[a]}", data=emean(flux[:, a]))

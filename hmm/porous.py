@@ -60,6 +60,9 @@ log = logging.getLogger(__name__)
 #: (:attr:`BiotSolver.pressure_bound`) is a diverging solution: the step is cut
 PRESSURE_BOUND = 1e3
 
+#: how the permeability follows the porosity (:class:`Fluid`)
+PERMEABILITY_LAWS = ("constant", "kozeny_carman")
+
 #: how the two fields are solved in each iteration (:class:`BiotSolver`)
 COUPLINGS = ("monolithic", "fixed_stress")
 
@@ -122,6 +125,10 @@ class Fluid:
         Bulk modulus of the grains K_s [Pa] (inf: incompressible, alpha = 1).
     initial_pressure : float
         Pore pressure at the start [Pa], uniform.
+    permeability_law : str
+        ``"constant"``, or ``"kozeny_carman"``: ``k`` scales with ``n^3 / (1 -
+        n)^2`` from its value at ``porosity``, ``n = 1 - (1 - n_0) / (1 + tr eps)``
+        at each Gauss point (the grains keep their volume); the storage keeps ``n_0``.
     """
 
     permeability: object
@@ -131,6 +138,7 @@ class Fluid:
     biot: float = 1.0
     solid_bulk_modulus: float = math.inf
     initial_pressure: float = 0.0
+    permeability_law: str = "constant"
 
     def __post_init__(self):
         k = np.asarray(self.permeability, dtype=np.float64)
@@ -150,6 +158,9 @@ class Fluid:
             raise ValueError(f"porosity must be in (0, 1), got {self.porosity}")
         if not self.porosity <= self.biot <= 1.0:
             raise ValueError(f"biot must be in [porosity, 1], got {self.biot}")
+        if self.permeability_law not in PERMEABILITY_LAWS:
+            raise ValueError(f"permeability_law must be \"constant\" or "
+                             f"\"kozeny_carman\", got {self.permeability_law!r}")
 
     @property
     def storage(self):
@@ -250,6 +261,25 @@ class PorousMacro:
         return float(np.min(np.linalg.norm(mesh.p[:, edges[0]] - mesh.p[:, edges[1]],
                                            axis=0)))
 
+    def permeability_ratio(self, u):
+        """``k / k_0`` at the Gauss points (n_gp,) for the displacement ``u``: 1, or
+        Kozeny-Carman's ``[n^3 / (1 - n)^2] / [n_0^3 / (1 - n_0)^2]``."""
+        if self.fluid.permeability_law == "constant" or u is None:
+            return np.ones(self.macro.n_gp)
+        n0 = self.fluid.porosity
+        jac = 1.0 + np.trace(self.macro.strain(u), axis1=1, axis2=2)
+        n = np.clip(1.0 - (1.0 - n0) / jac, 1e-6, 1.0 - 1e-6)
+        return (n ** 3 / (1.0 - n) ** 2) / (n0 ** 3 / (1.0 - n0) ** 2)
+
+    def flow_matrix(self, u=None):
+        """``H = int grad q . kappa grad p`` (sparse) for the displacement ``u`` (the
+        assembled one of the initial porosity under a constant permeability)."""
+        if self.fluid.permeability_law == "constant" or u is None:
+            return self.H
+        ratio = self.macro.from_gp(self.permeability_ratio(u))
+        return asm(_flow, self.pbasis,
+                   kappa=self.kappa[:, :, None, None] * ratio).tocsr()
+
     def fixed_stress_mass(self, tangent):
         """``int q alpha^2 / K_dr p`` (sparse): the fixed-stress split's estimate of
         the volume change per pressure change, ``K_dr`` each Gauss point's drained
@@ -267,10 +297,11 @@ class PorousMacro:
         """Pore pressure at the Gauss points (n_gp,) [Pa]."""
         return self.macro.to_gp(self.pbasis.interpolate(p))
 
-    def darcy_flux(self, p):
-        """Darcy's flux ``w = -kappa grad p`` at the Gauss points (n_gp, d) [m/s]."""
+    def darcy_flux(self, p, u=None):
+        """Darcy's flux ``w = -kappa grad p`` at the Gauss points (n_gp, d) [m/s] (the
+        permeability of the displacement ``u`` under Kozeny-Carman)."""
         g = self.macro.to_gp(self.pbasis.interpolate(p).grad)  # (n_gp, d)
-        return -g @ self.kappa.T
+        return -(g @ self.kappa.T) * self.permeability_ratio(u)[:, None]
 
 
 @dataclass(frozen=True)
@@ -398,26 +429,27 @@ class BiotSolver(Solver):
                                 for c in range(self.macro.dim)])
                 for name in self.supports.boundaries}
 
-    def _residual(self, sig, du, p, dt, t1):
-        """``(R_u, R_p)`` and the reference norms of their terms."""
+    def _residual(self, sig, du, p, dt, t1, flow):
+        """``(R_u, R_p)`` and the reference norms of their terms (``flow``: the flow
+        matrix ``H`` of the trial configuration)."""
         por = self.porous
         f_int = self.macro.internal_force(sig)
         f_ext = self.f_ext(t1)
         r_u = f_int - por.Q @ p - f_ext
-        mass = (por.Q.T @ du, por.S @ (p - self.p), dt * (por.H @ p), dt * por.f_q)
+        mass = (por.Q.T @ du, por.S @ (p - self.p), dt * (flow @ p), dt * por.f_q)
         r_p = -(mass[0] + mass[1] + mass[2] - mass[3])
         ref_u = max(float(np.linalg.norm(f_int)), float(np.linalg.norm(f_ext)),
                     float(np.linalg.norm(por.Q @ p)), 1e-300)
         ref_p = max(max(float(np.linalg.norm(m)) for m in mass), 1e-300)
         return r_u, r_p, ref_u, ref_p
 
-    def _matrix(self, tangent, dt):
+    def _matrix(self, tangent, dt, flow):
         por = self.porous
         k = self.macro.stiffness(tangent)
-        return sparse.bmat([[k, -por.Q], [-por.Q.T, -(por.S + dt * por.H)]],
+        return sparse.bmat([[k, -por.Q], [-por.Q.T, -(por.S + dt * flow)]],
                            format="csr")
 
-    def _correction(self, jac, r, tangent, dt):
+    def _correction(self, jac, r, tangent, dt, flow):
         """The correction of ``(du, p)`` for the residual ``r``: Newton on the whole
         matrix ``jac`` (monolithic), or the fixed-stress split: the flow first, its
         volume change estimated from the pressure change at a fixed mean total
@@ -426,7 +458,7 @@ class BiotSolver(Solver):
             return linear_solve(jac, -r, self._fixed, tie=self._tie_up)
         por, n_u = self.porous, self.macro.n_dofs
         r_u, r_p = r[:n_u], r[n_u:]
-        a_p = por.S + por.fixed_stress_mass(tangent) + dt * por.H
+        a_p = por.S + por.fixed_stress_mass(tangent) + dt * flow
         dp = linear_solve(a_p, r_p, por.p_dofs)
         du = linear_solve(self.macro.stiffness(tangent), -(r_u - por.Q @ dp),
                           self.supports.dofs, tie=self._tie)
@@ -456,11 +488,12 @@ class BiotSolver(Solver):
         z[n_u + por.p_dofs] = por.p_values
         # predictor from the committed tangents: the residual at z, linearised about
         # the committed state z0, and one correction
-        r_u, r_p, _, _ = self._residual(self.sigma, np.zeros(n_u), self.p, h, t1)
-        jac = self._matrix(self.tangent, h)
+        flow = por.flow_matrix(self.u)
+        r_u, r_p, _, _ = self._residual(self.sigma, np.zeros(n_u), self.p, h, t1, flow)
+        jac = self._matrix(self.tangent, h, flow)
         z0 = np.concatenate([np.zeros(n_u), self.p])
         r = np.concatenate([r_u, r_p]) + jac @ (z - z0)
-        z = z + self._correction(jac, r, self.tangent, h)
+        z = z + self._correction(jac, r, self.tangent, h, flow)
         growth, last = 0, math.inf
         prev, omega = None, 1.0
         for it in range(1, st.max_iterations + 1):
@@ -474,13 +507,15 @@ class BiotSolver(Solver):
                     raise SolverError(f"time step at t = {self.t:.6g} s stopped: "
                                       f"{err}") from err
                 raise _NotConverged(str(err)) from err
-            r_u, r_p, ref_u, ref_p = self._residual(sig, du, p, h, t1)
+            flow = por.flow_matrix(self.u + du)
+            r_u, r_p, ref_u, ref_p = self._residual(sig, du, p, h, t1, flow)
             ru = float(np.linalg.norm(free_part(r_u, self.free, self._tie)))
             rp = float(np.linalg.norm(r_p[self._free_p]))
             rel = max(ru / ref_u, rp / ref_p)
             if not math.isfinite(rel):
                 raise _NotConverged("non-finite residual")
-            dz = self._correction(self._matrix(c, h), np.concatenate([r_u, r_p]), c, h)
+            dz = self._correction(self._matrix(c, h, flow), np.concatenate([r_u, r_p]),
+                                  c, h, flow)
             dn = float(np.linalg.norm(dz[:n_u]))
             pn = float(np.linalg.norm(dz[n_u:]))
             if st.check_residual:

@@ -329,6 +329,11 @@ SCHEMA = {
                                       "incompressible grains)."),
         "initial_pressure": Key("float", "Pa", default=0.0,
                                 doc="Uniform pore pressure at the start."),
+        "permeability_law": Key("str", default="constant",
+                                choices=("constant", "kozeny_carman"),
+                                doc="kozeny_carman: the permeability scales with n^3 / "
+                                    "(1 - n)^2 from its value at porosity, n following "
+                                    "the volumetric strain at each Gauss point."),
     }),
     "drainage": Section(doc="Hydraulic conditions of a saturated problem: every "
                             "boundary not named here is impermeable.", array=True,
@@ -628,7 +633,8 @@ def build_porous(problem, macro):
     fluid = Fluid(permeability=fl["permeability"], viscosity=fl["viscosity"],
                   bulk_modulus=fl["bulk_modulus"], porosity=fl["porosity"],
                   biot=fl["biot"], solid_bulk_modulus=math.inf if ks is None else ks,
-                  initial_pressure=fl["initial_pressure"])
+                  initial_pressure=fl["initial_pressure"],
+                  permeability_law=fl["permeability_law"])
     drained = {c["boundary"]: c["pressure"] for c in problem["drainage"]
                if c["pressure"] is not None}
     inflow = {c["boundary"]: c["flux"] for c in problem["drainage"]

@@ -259,3 +259,35 @@ def test_a_diverging_pressure_stops_the_run_at_the_last_converged_step(model, bo
     with pytest.raises(SolverError, match=message):
         s.advance(0.25)
     assert s.t == 0.0 and np.all(s.p == 0.0) and np.all(s.u == 0.0)
+
+
+def test_kozeny_carman_permeability_follows_the_compaction():
+    """A column compacted by 2 % (a prescribed top displacement), an inflow at its
+    base: the steady pressure gradient is the flux over the permeability of the
+    compacted porosity, k_0 [n^3 / (1 - n)^2] / [n_0^3 / (1 - n_0)^2] with
+    n = 1 - (1 - n_0) / (1 - 0.02)."""
+    porous, farm, _, _ = column(cells=8)
+    macro = porous.macro
+    n0, qbar, strain = 0.4, 1e-6, 0.02
+    fluid = Fluid(permeability=CV / M_C * 1e-3, bulk_modulus=np.inf, porosity=n0,
+                  permeability_law="kozeny_carman")
+    porous = PorousMacro(macro, fluid, drained={"top": 0.0}, inflow={"bottom": qbar})
+    top = macro.dofs("top", 1)
+    dofs = np.unique(np.concatenate([macro.dofs("bottom", 1), macro.dofs("left", 0),
+                                     macro.dofs("right", 0), top]))
+    values = np.where(np.isin(dofs, top), -strain * H, 0.0)
+    s = BiotSolver(porous, farm, Supports(dofs, values), TimeSchedule(end=20.0, steps=40,
+                                                                      first=0.01),
+                   settings=SolverSettings(aitken=False))
+    for t in s.schedule.times():
+        s.advance(t - s.t)
+    n = 1.0 - (1.0 - n0) / (1.0 - strain)
+    ratio = (n**3 / (1 - n) ** 2) / (n0**3 / (1 - n0) ** 2)
+    # to 1e-4: the seepage force compacts the base a little more than the top
+    assert porous.permeability_ratio(s.u) == pytest.approx(ratio, rel=1e-4)
+    y = macro.mesh.p[1]
+    assert porous.nodal_pressure(s.p) == pytest.approx(
+        qbar * (H - y) / (CV / M_C * ratio), rel=1e-4, abs=1e-9 * Q)
+    assert porous.darcy_flux(s.p, s.u)[:, 1] == pytest.approx(qbar, rel=1e-6)
+    with pytest.raises(ValueError, match="permeability_law must be"):
+        Fluid(permeability=1e-12, permeability_law="cubic")

@@ -302,3 +302,36 @@ def test_footing_consolidation_example_at_small_size(tmp_path):
     assert settle[-1] > 1.5 * settle[1]
     assert 0.5e5 < pmax[1] <= 1e5  # the water carries most of the 100 kPa at first
     assert pmax[-1] < 0.05e5  # and has drained at the end
+
+
+def test_3d_dem_rves_answer_undrained_on_quadratic_hexahedra(tmp_path):
+    """hex20 displacements and hex1 pressures over 40-sphere RVEs (kn scaled for
+    spheres as in the triaxial RVE test): no drainage, the element shortened by
+    0.02 %; its volume changes only by the water's compression, tr eps = -p / M on
+    average, and the water is squeezed."""
+    problem = validate_problem({
+        "mesh": {"dim": 3, "element": "hex20", "size": [0.02, 0.02, 0.02],
+                 "cells": [1, 1, 1]},
+        "dirichlet": [{"boundary": "front", "component": "z"},
+                      {"boundary": "left", "component": "x"},
+                      {"boundary": "bottom", "component": "y"},
+                      {"boundary": "back", "component": "z", "value": -4e-6}],
+        "pressure": [{"boundary": "right", "value": 1e5},
+                     {"boundary": "top", "value": 1e5}],
+        "load": {"steps": 2},
+        "fluid": {"permeability": 1e-15},
+        "time": {"end": 1.0},
+        "micro": {"model": "dem", "count": 40, "seed": 5, "p0": 1e5, "kn": 1e5,
+                  "kt": 5e4},
+        "solver": {"tol_residual": 1e-2, "tol_displacement": 1e-2},
+    })
+    out = run_problem(problem, tmp_path, progress=False)
+    with h5py.File(tmp_path / "fields.h5", "r") as f:
+        last = f["steps"][sorted(f["steps"])[-1]]
+        eps = last["gauss/strain"][()]
+        pg = last["gauss/pore_pressure"][()]
+        w = f["gauss/weights"][()]
+    assert np.abs(eps[:, 2, 2]).mean() == pytest.approx(2e-4, rel=0.05)
+    volume = w @ np.trace(eps, axis1=1, axis2=2)
+    assert volume == pytest.approx(-(0.4 / 2.2e9) * (w @ pg), rel=1e-3)
+    assert np.all(pg > 0.0) and out["cuts"] == 0

@@ -231,10 +231,14 @@ class Solver:
         committed state (``{boundary: (d,)}``): the internal force that external
         loads do not balance (on the current configuration under finite
         kinematics)."""
-        r = self.macro.internal_force(self.sigma, self.u) - self.f_ext(self.t)
+        r = self._unbalanced()
         return {name: np.array([r[self.macro.dofs(name, c)].sum()
                                 for c in range(self.macro.dim)])
                 for name in self.supports.boundaries}
+
+    def _unbalanced(self):
+        """Internal minus external nodal force at the committed state [N]."""
+        return self.macro.internal_force(self.sigma, self.u) - self.f_ext(self.t)
 
     # ------------------------------------------------------------------ one step
     def advance(self, dt, on_iteration=None):

@@ -610,6 +610,13 @@ def _record(rve, stress, f0_inv, steps):
             "unbalanced": r["unbalanced"], "relax_steps": steps}
 
 
+def _test_summary(c, rve, confining):
+    """What every test's summary opens with: the packing and its start."""
+    return {"dim": rve.dim, "n_particles": int(rve.bodies.n),
+            "particles": grains(rve.bodies), "confining": confining,
+            "initial_void_ratio": float(c["void_ratio"][0])}
+
+
 def _summarize(c, rve, confining, increment):
     d = rve.dim
     ratio, ea, ev = c["stress_ratio"], c["axial_strain"], c["volumetric_strain"]
@@ -617,9 +624,7 @@ def _summarize(c, rve, confining, increment):
     near = np.abs(ea - ea[k]) <= max(0.01, 2.0 * increment) + 1e-12
     late = ea >= 0.8 * ea[-1] - 1e-12
     cs_ratio = float(ratio[late].mean())
-    return {"dim": d, "n_particles": int(rve.bodies.n), "particles": grains(rve.bodies),
-            "confining": confining,
-            "initial_void_ratio": float(c["void_ratio"][0]),
+    return {**_test_summary(c, rve, confining),
             "peak_stress_ratio": float(ratio[k]), "peak_axial_strain": float(ea[k]),
             "peak_friction_angle": float(friction_angle(ratio[k], d)),
             "dilatancy_angle": dilatancy_angle(ea[near], ev[near]),
@@ -644,9 +649,7 @@ def _summarize_undrained(c, rve, confining, increment):
     # stress fell below 1 % of the start
     liquefied = bool(p[-1] < 0.01 * p[0])
     nan = float("nan")
-    return {"dim": rve.dim, "n_particles": int(rve.bodies.n),
-            "particles": grains(rve.bodies), "confining": confining,
-            "initial_void_ratio": float(c["void_ratio"][0]),
+    return {**_test_summary(c, rve, confining),
             "peak_deviator": float(q[k]), "peak_axial_strain": float(ea[k]),
             "peak_mean_stress": float(p[k]),
             "phase_transformation_mean_stress": float(p[m]) if turn else nan,
@@ -669,8 +672,7 @@ def _summarize_oedometric(c, rve, confining, increment):
     sig_a = -c["stress"][:, d - 1, d - 1]
     half = c["k0"][1:][len(c["k0"][1:]) // 2:]
     ea = c["axial_strain"]
-    return {"dim": d, "n_particles": int(rve.bodies.n), "particles": grains(rve.bodies),
-            "confining": confining, "initial_void_ratio": float(c["void_ratio"][0]),
+    return {**_test_summary(c, rve, confining),
             "k0": float(half.mean()), "final_k0": float(c["k0"][-1]),
             "final_axial_stress": float(sig_a[-1]),
             "constrained_modulus": float((sig_a[-1] - sig_a[-2]) / (ea[-1] - ea[-2])),
@@ -683,9 +685,7 @@ def _summarize_isotropic(c, rve, confining, increment):
     p, e, ev = c["p"], c["void_ratio"], c["volumetric_strain"]
     top = int(np.argmax(p))
     up, down = slice(0, top + 1), slice(top, None)
-    return {"dim": rve.dim, "n_particles": int(rve.bodies.n),
-            "particles": grains(rve.bodies), "confining": confining,
-            "initial_void_ratio": float(e[0]), "p_max": float(p[top]),
+    return {**_test_summary(c, rve, confining), "p_max": float(p[top]),
             "compression_index": float(-np.polyfit(np.log(p[up]), e[up], 1)[0]),
             "swelling_index": float(-np.polyfit(np.log(p[down]), e[down], 1)[0]),
             "bulk_modulus": float((p[1] - p[0]) / (ev[1] - ev[0])),
@@ -704,9 +704,7 @@ def _summarize_shear(c, rve, confining, increment):
     late = g >= 0.8 * g[-1] - 1e-12
     slope = np.polyfit(g[near], en[near], 1)[0] if near.sum() > 1 else float("nan")
     late_ratio = float(ratio[late].mean())
-    return {"dim": rve.dim, "n_particles": int(rve.bodies.n),
-            "particles": grains(rve.bodies), "confining": confining,
-            "initial_void_ratio": float(c["void_ratio"][0]),
+    return {**_test_summary(c, rve, confining),
             "peak_stress_ratio": float(ratio[k]), "peak_shear_strain": float(g[k]),
             "peak_friction_angle": float(np.degrees(np.arctan(ratio[k]))),
             "dilation_angle": float(np.degrees(np.arctan(-slope))),
@@ -723,9 +721,7 @@ def _summarize_cyclic(c, rve, confining, increment):
     per_cycle = 4 * math.ceil(amp / increment - 1e-9)
     liquefied = bool(p[-1] < 0.01 * p[0])
     done = (len(p) - 1) / per_cycle
-    return {"dim": rve.dim, "n_particles": int(rve.bodies.n),
-            "particles": grains(rve.bodies), "confining": confining,
-            "initial_void_ratio": float(c["void_ratio"][0]),
+    return {**_test_summary(c, rve, confining),
             "strain_amplitude": float(amp), "strain_increment": float(increment),
             "cycles_run": float(done),
             "liquefied": liquefied,

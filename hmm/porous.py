@@ -49,7 +49,7 @@ from skfem import (
     LinearForm,
     asm,
 )
-from skfem.helpers import dot, grad, mul
+from skfem.helpers import div, dot, grad, mul
 
 from .coupling import Solver, SolverError, _NotConverged, free_part, linear_solve, tie_map
 from .farm import MicroFailure
@@ -81,8 +81,7 @@ PAIRS = {
 @BilinearForm
 def _coupling(p, v, w):
     # alpha p div v: rows displacement tests, columns pressures
-    return w.alpha * p * (v.grad[0][0] + v.grad[1][1]
-                          + (v.grad[2][2] if v.grad.shape[0] == 3 else 0.0))
+    return w.alpha * p * div(v)
 
 
 @BilinearForm
@@ -421,13 +420,10 @@ class BiotSolver(Solver):
         return self.sigma - self.porous.fluid.biot * p[:, None, None] \
             * np.eye(self.macro.dim)
 
-    def reactions(self):
-        """As :meth:`Solver.reactions`, from the total stress."""
-        r = self.macro.internal_force(self.sigma) - self.porous.Q @ self.p \
+    def _unbalanced(self):
+        """As :meth:`Solver._unbalanced`, from the total stress: the reactions."""
+        return self.macro.internal_force(self.sigma) - self.porous.Q @ self.p \
             - self.f_ext(self.t)
-        return {name: np.array([r[self.macro.dofs(name, c)].sum()
-                                for c in range(self.macro.dim)])
-                for name in self.supports.boundaries}
 
     def _residual(self, sig, du, p, dt, t1, flow):
         """``(R_u, R_p)`` and the reference norms of their terms (``flow``: the flow
@@ -443,25 +439,26 @@ class BiotSolver(Solver):
         ref_p = max(max(float(np.linalg.norm(m)) for m in mass), 1e-300)
         return r_u, r_p, ref_u, ref_p
 
-    def _matrix(self, tangent, dt, flow):
+    def _matrix(self, k, dt, flow):
+        """The whole Newton matrix from the stiffness ``k`` and flow matrix."""
         por = self.porous
-        k = self.macro.stiffness(tangent)
         return sparse.bmat([[k, -por.Q], [-por.Q.T, -(por.S + dt * flow)]],
                            format="csr")
 
-    def _correction(self, jac, r, tangent, dt, flow):
-        """The correction of ``(du, p)`` for the residual ``r``: Newton on the whole
-        matrix ``jac`` (monolithic), or the fixed-stress split: the flow first, its
-        volume change estimated from the pressure change at a fixed mean total
-        stress (``alpha^2 / K_dr dp``), then the mechanics at the new pressure."""
+    def _correction(self, k, r, tangent, dt, flow):
+        """The correction of ``(du, p)`` for the residual ``r`` (``k``: the stiffness
+        of ``tangent``): Newton on the whole matrix (monolithic), or the fixed-stress
+        split: the flow first, its volume change estimated from the pressure change
+        at a fixed mean total stress (``alpha^2 / K_dr dp``), then the mechanics at
+        the new pressure."""
         if self.coupling == "monolithic":
-            return linear_solve(jac, -r, self._fixed, tie=self._tie_up)
+            return linear_solve(self._matrix(k, dt, flow), -r, self._fixed,
+                                tie=self._tie_up)
         por, n_u = self.porous, self.macro.n_dofs
         r_u, r_p = r[:n_u], r[n_u:]
         a_p = por.S + por.fixed_stress_mass(tangent) + dt * flow
         dp = linear_solve(a_p, r_p, por.p_dofs)
-        du = linear_solve(self.macro.stiffness(tangent), -(r_u - por.Q @ dp),
-                          self.supports.dofs, tie=self._tie)
+        du = linear_solve(k, -(r_u - por.Q @ dp), self.supports.dofs, tie=self._tie)
         return np.concatenate([du, dp])
 
     def _check_pressure(self, p):
@@ -490,17 +487,18 @@ class BiotSolver(Solver):
         # the committed state z0, and one correction
         flow = por.flow_matrix(self.u)
         r_u, r_p, _, _ = self._residual(self.sigma, np.zeros(n_u), self.p, h, t1, flow)
-        jac = self._matrix(self.tangent, h, flow)
+        k = macro.stiffness(self.tangent)
         z0 = np.concatenate([np.zeros(n_u), self.p])
-        r = np.concatenate([r_u, r_p]) + jac @ (z - z0)
-        z = z + self._correction(jac, r, self.tangent, h, flow)
+        r = np.concatenate([r_u, r_p]) + self._matrix(k, h, flow) @ (z - z0)
+        z = z + self._correction(k, r, self.tangent, h, flow)
         growth, last = 0, math.inf
         prev, omega = None, 1.0
         for it in range(1, st.max_iterations + 1):
             du, p = z[:n_u], z[n_u:]
             self._check_pressure(p)
+            grad = macro.increment_gradient(self.u, du)
             try:
-                sig, c = farm.trial(macro.increment_gradient(self.u, du))
+                sig, c = farm.trial(grad)
             except MicroFailure as err:
                 if not err.recoverable:
                     farm.rollback()
@@ -514,8 +512,8 @@ class BiotSolver(Solver):
             rel = max(ru / ref_u, rp / ref_p)
             if not math.isfinite(rel):
                 raise _NotConverged("non-finite residual")
-            dz = self._correction(self._matrix(c, h, flow), np.concatenate([r_u, r_p]),
-                                  c, h, flow)
+            dz = self._correction(macro.stiffness(c), np.concatenate([r_u, r_p]), c, h,
+                                  flow)
             dn = float(np.linalg.norm(dz[:n_u]))
             pn = float(np.linalg.norm(dz[n_u:]))
             if st.check_residual:
@@ -535,7 +533,7 @@ class BiotSolver(Solver):
                 self.p = p.copy()
                 self.t = t1
                 self.sigma, self.tangent = sig, c
-                self.increment = macro.increment_gradient(self.u - du, du)
+                self.increment = grad
                 farm.commit()
                 return it
             watched = rel if st.check_residual else drel

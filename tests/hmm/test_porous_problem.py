@@ -151,6 +151,14 @@ def test_a_platen_carries_a_force_as_a_rigid_plate(tmp_path):
         build_loads(validate_problem(data, source="block.toml"), macro)
 
 
+def _last_gauss(path):
+    """Strain, pore pressure and weights of the Gauss points at the last frame."""
+    with h5py.File(path, "r") as f:
+        last = f["steps"][sorted(f["steps"])[-1]]
+        return (last["gauss/strain"][()], last["gauss/pore_pressure"][()],
+                f["gauss/weights"][()])
+
+
 def test_dem_rves_answer_undrained_at_constant_volume(tmp_path):
     """No drainage anywhere, water far stiffer than the packing: a shortened sample
     keeps its volume but for the water's own compression, and the squeezed water's
@@ -168,11 +176,7 @@ def test_dem_rves_answer_undrained_at_constant_volume(tmp_path):
         "solver": {"tol_residual": 1e-2, "tol_displacement": 1e-2},
     })
     out = run_problem(problem, tmp_path, progress=False)
-    with h5py.File(tmp_path / "fields.h5", "r") as f:
-        last = f["steps"][sorted(f["steps"])[-1]]
-        eps = last["gauss/strain"][()]
-        pg = last["gauss/pore_pressure"][()]
-        w = f["gauss/weights"][()]
+    eps, pg, w = _last_gauss(tmp_path / "fields.h5")
     axial = np.abs(eps[:, 1, 1]).mean()
     assert axial == pytest.approx(1e-4, rel=0.05)
     # no water leaves: the element's volume changes only by the water's compression,
@@ -326,12 +330,16 @@ def test_3d_dem_rves_answer_undrained_on_quadratic_hexahedra(tmp_path):
         "solver": {"tol_residual": 1e-2, "tol_displacement": 1e-2},
     })
     out = run_problem(problem, tmp_path, progress=False)
-    with h5py.File(tmp_path / "fields.h5", "r") as f:
-        last = f["steps"][sorted(f["steps"])[-1]]
-        eps = last["gauss/strain"][()]
-        pg = last["gauss/pore_pressure"][()]
-        w = f["gauss/weights"][()]
+    eps, pg, w = _last_gauss(tmp_path / "fields.h5")
     assert np.abs(eps[:, 2, 2]).mean() == pytest.approx(2e-4, rel=0.05)
     volume = w @ np.trace(eps, axis1=1, axis2=2)
     assert volume == pytest.approx(-(0.4 / 2.2e9) * (w @ pg), rel=1e-3)
     assert np.all(pg > 0.0) and out["cuts"] == 0
+
+
+def test_the_schema_offers_what_the_solver_takes():
+    from hmm.porous import COUPLINGS, PERMEABILITY_LAWS
+    from hmm.problem import SCHEMA
+
+    assert SCHEMA["solver"].keys["coupling"].choices == COUPLINGS
+    assert SCHEMA["fluid"].keys["permeability_law"].choices == PERMEABILITY_LAWS

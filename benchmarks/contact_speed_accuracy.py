@@ -362,7 +362,8 @@ def _flowing_assembly():
         except dem.SimulationError as err:  # reported, not hidden
             failure = str(err)
             break
-        for it, geom in ((sim.iters, sim.pgeom), (sim.witers, sim.wgeom)):
+        ss, sw = sim.shape_state, sim.shape_wall_state
+        for it, geom in ((ss.iters, ss.pgeom), (sw.witers, sw.wgeom)):
             touching = geom[:, 0] > 0.0
             hist += np.bincount(np.minimum(it[touching], 63), minlength=64)
             total += int(it[touching].sum())

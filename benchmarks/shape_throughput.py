@@ -143,7 +143,7 @@ def worker(dim, path, steps, reps, detection):
     for q, key in enumerate(keys):
         lo, hi = sim._bstart[q], sim._bstart[q + 1]
         rows = sim._order[lo:hi]
-        methods[f"{key[0]}-{key[1]}"] = int(np.sum(sim.pgeom[rows, 0] > 0.0))
+        methods[f"{key[0]}-{key[1]}"] = int(np.sum(sim.shape_state.pgeom[rows, 0] > 0.0))
     C.emit_result({"median_s": C.median(times), "runs_s": times, "steps": steps,
                    "bodies": n_free,
                    "body_steps_per_s": n_free * steps / C.median(times),

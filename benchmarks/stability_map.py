@@ -513,8 +513,9 @@ def admm_simulation():
         try:
             for _ in range(40):
                 sim.run(20)
-                if len(sim.iters):
-                    row["max_iterations"] = max(row["max_iterations"], int(sim.iters.max()))
+                iters = sim.shape_state.iters
+                if len(iters):
+                    row["max_iterations"] = max(row["max_iterations"], int(iters.max()))
         except dem.SimulationError as exc:
             row["error"] = str(exc)
         row["steps"] = sim.step
@@ -560,7 +561,7 @@ def admm_corner(quick):
                         sim.run(1)
                         c = sim.contacts()
                         if len(c["i"]):
-                            most = int(np.max(sim.iters))
+                            most = int(np.max(sim.shape_state.iters))
                             res["iterations"] = max(res["iterations"], most)
                             res["detections"] += 1
                             res["cold_restarts"] += int(most > WARM_MAX_ITER)

@@ -298,7 +298,9 @@ class NeighborList:
         self.backend = backend
         self.box = box
         self.n_builds = 0
-        self._cap = 0
+        #: rows of the cell search's pair buffer (grown on overflow; 0 before the first
+        #: build). Part of the state: it decides how the next build fills its buffer
+        self.capacity = 0
         self.pairs = None
 
     def build(self, bodies):
@@ -351,17 +353,17 @@ class NeighborList:
         n_cells = np.maximum(1, np.floor(length / cell)).astype(np.int64)
         while np.prod(n_cells) > 8 * spheres.size + 64:  # sparse scenes: coarser grid
             n_cells = np.maximum(1, n_cells // 2)
-        if self._cap == 0:
-            self._cap = 8 * spheres.size + 64
+        if self.capacity == 0:
+            self.capacity = 8 * spheres.size + 64
         while True:
-            pairs = np.empty((self._cap, 2), np.int32)
-            img = np.empty((self._cap, d), np.int32)
+            pairs = np.empty((self.capacity, 2), np.int32)
+            img = np.empty((self.capacity, d), np.int32)
             m = build_cell_pairs(pos, radius, spheres, self.skin, lo, length, n_cells,
                                  box.periodic, hmat, hinv, triclinic, pairs, img)
-            if m <= self._cap:
+            if m <= self.capacity:
                 return pairs[:m].copy(), img[:m].copy()
-            log.debug("neighbour list overflow (%d > %d pairs): regrowing", m, self._cap)
-            self._cap = int(1.25 * m) + 16
+            log.debug("neighbour list overflow (%d > %d pairs): regrowing", m, self.capacity)
+            self.capacity = int(1.25 * m) + 16
 
     def _build_kdtree(self, bodies, spheres, box):
         from scipy.spatial import cKDTree

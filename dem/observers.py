@@ -111,7 +111,7 @@ def contact_summary(sim):
     p, img = nl.pairs, nl.img
     if p.shape[0]:
         i, j = p[:, 0], p[:, 1]
-        shift = img @ sim._hmat.T
+        shift = img @ sim.image_matrix.T
         dx = b.pos[j] - b.pos[i] + shift
         dist = np.linalg.norm(dx, axis=1)
         ov = b.radius[i] + b.radius[j] - dist
@@ -125,7 +125,7 @@ def contact_summary(sim):
         out["overlap"].append(ov)
         out["x1"].append(b.pos[i] + ri[:, None] * n)
         out["x2"].append(b.pos[i] + dx - rj[:, None] * n)
-        out["branch"].append(dx), out["force"].append(sim.fpair[t])
+        out["branch"].append(dx), out["force"].append(sim.pair_state.fpair[t])
         out["arm_i"].append((ri - 0.5 * ov)[:, None] * n)
         out["arm_j"].append(-(rj - 0.5 * ov)[:, None] * n)
         out["kn"].append(kn), out["kt"].append(kt)
@@ -146,7 +146,7 @@ def contact_summary(sim):
         out["overlap"].append(ov)
         out["x1"].append(b.pos[i] + ri[:, None] * n)
         out["x2"].append(b.pos[i] + (ri - ov)[:, None] * n)
-        out["branch"].append(2.0 * arm), out["force"].append(-sim.wforce[t])
+        out["branch"].append(2.0 * arm), out["force"].append(-sim.wall_state.wforce[t])
         out["arm_i"].append(arm), out["arm_j"].append(np.zeros_like(arm))
         out["kn"].append(kn), out["kt"].append(kt)
         out["is_wall"].append(np.ones(i.size, bool))
@@ -169,25 +169,25 @@ def _shape_summary(sim, out):
     d = b.dim
     p = nl.pairs
     if p.shape[0]:
-        t = sim.pgeom[:, 0] > 0.0
+        t = sim.shape_state.pgeom[:, 0] > 0.0
         i, j = p[t, 0], p[t, 1]
-        g = sim.pgeom[t]
+        g = sim.shape_state.pgeom[t]
         ov, n, c = g[:, 0], g[:, 1:1 + d], g[:, 4:4 + d]
-        pj = b.pos[j] + nl.img[t] @ sim._hmat.T
+        pj = b.pos[j] + nl.img[t] @ sim.image_matrix.T
         ri, rj = sim.contact_radii()[0][t].T
         kn, kt = _stiffness(sim, "pp", ov, ri * rj / (ri + rj), b.mat_id[i], b.mat_id[j])
         out["i"].append(i), out["j"].append(j), out["normal"].append(n)
         out["overlap"].append(ov)
         out["x1"].append(c + 0.5 * ov[:, None] * n), out["x2"].append(c - 0.5 * ov[:, None] * n)
-        out["branch"].append(pj - b.pos[i]), out["force"].append(sim.fpair[t])
+        out["branch"].append(pj - b.pos[i]), out["force"].append(sim.pair_state.fpair[t])
         out["arm_i"].append(c - b.pos[i]), out["arm_j"].append(c - pj)
         out["kn"].append(kn), out["kt"].append(kt)
         out["is_wall"].append(np.zeros(i.size, bool))
     wp = nl.wall_pairs
     if wp.shape[0]:
-        t = sim.wgeom[:, 0] > 0.0
+        t = sim.shape_wall_state.wgeom[:, 0] > 0.0
         i, w = wp[t, 0], wp[t, 1]
-        g = sim.wgeom[t]
+        g = sim.shape_wall_state.wgeom[t]
         ov, n, c = g[:, 0], g[:, 1:1 + d], g[:, 4:4 + d]
         kn, kt = _stiffness(sim, "pw", ov, sim.contact_radii()[1][t], b.mat_id[i],
                             b.mat_id[w])
@@ -195,14 +195,14 @@ def _shape_summary(sim, out):
         out["i"].append(i), out["j"].append(w), out["normal"].append(n)
         out["overlap"].append(ov)
         out["x1"].append(c + 0.5 * ov[:, None] * n), out["x2"].append(c - 0.5 * ov[:, None] * n)
-        out["branch"].append(2.0 * arm), out["force"].append(-sim.wforce[t])
+        out["branch"].append(2.0 * arm), out["force"].append(-sim.wall_state.wforce[t])
         out["arm_i"].append(arm), out["arm_j"].append(np.zeros_like(arm))
         out["kn"].append(kn), out["kt"].append(kt)
         out["is_wall"].append(np.ones(i.size, bool))
 
 
 def _stiffness(sim, bucket, ov, r_eff, ma, mb):
-    table = sim._params_pp if bucket == "pp" else sim._params_pw
+    table = sim.parameter_table(bucket)
     kn = np.empty(ov.size)
     kt = np.empty(ov.size)
     contact_stiffness(sim.model.kind(bucket).code, np.ascontiguousarray(ov),
@@ -312,8 +312,10 @@ def elastic_energy(sim):
     if sim.shaped:
         radii = sim.contact_radii()
         for bucket, pairs, hist, geom, tab in (
-                ("pp", nl.pairs, sim.hist, sim.pgeom, sim._params_pp),
-                ("pw", nl.wall_pairs, sim.whist, sim.wgeom, sim._params_pw)):
+                ("pp", nl.pairs, sim.pair_state.hist, sim.shape_state.pgeom,
+                 sim.parameter_table("pp")),
+                ("pw", nl.wall_pairs, sim.wall_state.whist, sim.shape_wall_state.wgeom,
+                 sim.parameter_table("pw"))):
             if not pairs.shape[0]:
                 continue
             i, j = pairs[:, 0], pairs[:, 1]
@@ -326,14 +328,15 @@ def elastic_energy(sim):
                                 np.ascontiguousarray(r_eff), tab, b.mat_id[i], b.mat_id[j],
                                 hist, np.flatnonzero(geom[:, 0] > 0.0))
         return float(e)
-    for bucket, pairs, hist, tab in (("pp", nl.pairs, sim.hist, sim._params_pp),
-                                     ("pw", nl.wall_pairs, sim.whist, sim._params_pw)):
+    for bucket, pairs, hist, tab in (
+            ("pp", nl.pairs, sim.pair_state.hist, sim.parameter_table("pp")),
+            ("pw", nl.wall_pairs, sim.wall_state.whist, sim.parameter_table("pw"))):
         if not pairs.shape[0]:
             continue
         law = sim.model.kind(bucket)
         i, j = pairs[:, 0], pairs[:, 1]
         if bucket == "pp":
-            dx = b.pos[j] - b.pos[i] + nl.img @ sim._hmat.T
+            dx = b.pos[j] - b.pos[i] + nl.img @ sim.image_matrix.T
             ov = b.radius[i] + b.radius[j] - np.linalg.norm(dx, axis=1)
             r_eff = b.radius[i] * b.radius[j] / (b.radius[i] + b.radius[j])
         else:

@@ -344,7 +344,7 @@ class RVE:
         next step)."""
         self.law = self.law.with_friction(mu)
         self.sim.model = type(self.sim.model)(self.law)
-        self.sim._primed = False
+        self.sim.invalidate()
 
     # ------------------------------------------------------------------ response
     def response(self, tangent=True):
@@ -365,8 +365,9 @@ class RVE:
         nl = sim.neighbors
         n_c, unbalanced = measure_periodic(
             sim.model.kind("pp").code, b.pos, b.vel, b.mass, b.radius, b.mat_id,
-            nl.pairs, nl.img, sim._hmat, sim.fpair, sim.shaped,
-            sim.pgeom if sim.shaped else _NO_GEOMETRY, sim._params_pp, self.volume,
+            nl.pairs, nl.img, sim.image_matrix, sim.pair_state.fpair, sim.shaped,
+            sim.shape_state.pgeom if sim.shaped else _NO_GEOMETRY,
+            sim.parameter_table("pp"), self.volume,
             bool(tangent), net, degree, sig, cmat, fabric)
         vs = solid_volume(b)
         out = {"stress": sig.copy(), "n_contacts": int(n_c),

@@ -186,7 +186,7 @@ check_every, threads
         """Change the particle-particle friction coefficient (the walls keep theirs)."""
         self.law = self.law.with_friction(mu)
         self.sim.model = ContactModel(self.law, self.wall_law)
-        self.sim._primed = False
+        self.sim.invalidate()
 
     def _set_wall_speeds(self, speed):
         """Walls of axis ``i`` move apart at ``speed[i]`` [m/s] (d,), centre fixed."""
@@ -216,7 +216,7 @@ check_every, threads
         x_c = b.pos[i] - gap[:, None] * nw  # the particle centre projected on the wall
         ax = np.arange(self.dim)
         centre = 0.5 * (b.pos[self.walls[:, 0], ax] + b.pos[self.walls[:, 1], ax])
-        sig = np.einsum("ca,cb->ab", sim.wforce, x_c - centre)  # wforce: on the particle
+        sig = np.einsum("ca,cb->ab", sim.wall_state.wforce, x_c - centre)  # wforce: on the particle
         return 0.5 * (sig + sig.T) / self.volume
 
     def response(self, tangent=True):

@@ -10,7 +10,6 @@ from .boundary import PeriodicCell
 from .contact.loops import N_BLOCKS, inner_index, stepper
 from .contact.model import ContactModel
 from .contact.shape_loop import (
-    N_WARM,
     method_for,
     pair_incidence,
     shape_stepper,
@@ -18,7 +17,7 @@ from .contact.shape_loop import (
 )
 from .neighbors import NeighborList, carry_history, incidence
 from .shapes import Shape
-from .state import Bodies
+from .state import Bodies, PairState, ShapePairState, ShapeWallState, WallState
 from .status import NOCONVERGE, NONFINITE, OK, OVERLAP, REBUILD
 
 log = logging.getLogger(__name__)
@@ -290,29 +289,33 @@ class Simulation:
             b.rot /= np.linalg.norm(b.rot, axis=1, keepdims=True)
         if self.cell is not None:  # a sheared cell takes its least skewed basis
             self.cell.reduce()
-        old = (nl.pairs, getattr(self, "hist", None), getattr(nl, "wall_pairs", None),
-               getattr(self, "whist", None))
+        old = (nl.pairs, getattr(nl, "wall_pairs", None), getattr(self, "pair_state", None),
+               getattr(self, "wall_state", None), getattr(self, "shape_state", None),
+               getattr(self, "shape_wall_state", None))
         nl.build(b)
         if self.shaped and self._has_parts:
             self._expand_parts()
         if self.cell is not None:
             self._cellref[:] = np.linalg.inv(self.cell.h)
-        m, mw, d, nr = nl.pairs.shape[0], nl.wall_pairs.shape[0], self.dim, b.n_rot
-        self.hist = np.zeros((m, 3))
-        self.whist = np.zeros((mw, 3))
-        if old[0] is not None and old[1] is not None:
-            carry_history(old[0], old[1], nl.pairs, self.hist)
-            carry_history(old[2], old[3], nl.wall_pairs, self.whist)
+        counts = self._row_counts()
+        ps = self.pair_state = PairState.zeros(counts, self.dim)
+        ws = self.wall_state = WallState.zeros(counts, self.dim)
+        if old[0] is not None and old[2] is not None:
+            carry_history(old[0], old[2].hist, nl.pairs, ps.hist)
+            carry_history(old[1], old[3].whist, nl.wall_pairs, ws.whist)
         # a pair with history was touching; others are found by the next force pass
-        self.touch = np.any(self.hist != 0.0, axis=1).astype(np.uint8)
-        self.fpair = np.zeros((m, d))
-        self.wforce = np.zeros((mw, d))
-        self.wtorque = np.zeros((mw, nr))
+        ps.touch[:] = np.any(ps.hist != 0.0, axis=1)
         if self.shaped:
             self._shape_rebuild(old)
         else:
             self._index()
         self._radius_ref = b.radius.copy()
+
+    def _row_counts(self):
+        """Rows of the state bundles: pairs, wall pairs and bodies."""
+        nl = self.neighbors
+        return {"pair": nl.pairs.shape[0], "wall": nl.wall_pairs.shape[0],
+                "body": self.bodies.n}
 
     def _index(self):
         n, nl = self.bodies.n, self.neighbors
@@ -339,20 +342,20 @@ class Simulation:
                         self._inc_start, self._slot)
 
     def _call(self, n_steps, prime, resume=False):
-        b, nl = self.bodies, self.neighbors
         if self.shaped:
             return self._shape_call(n_steps, prime, resume)
+        b, nl, ps, ws = self.bodies, self.neighbors, self.pair_state, self.wall_state
         return self._kernel(
             n_steps, prime, resume, numba.get_num_threads() == 1, self.dt, self.gravity,
             self.damping, nl.skin, self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel,
             b.force, b.torque, b.radius, b.mass, self._inv_mass, self._inv_inertia,
             self._fixed, b.normal, b.mat_id, nl.pos_ref, self._grow(), self._hmat,
-            self._lgrad, self._cellref, self.cell is not None, nl.pairs, nl.img, self.touch,
-            self.hist, self.fpair, self._contrib,
+            self._lgrad, self._cellref, self.cell is not None, nl.pairs, nl.img, ps.touch,
+            ps.hist, ps.fpair, self._contrib,
             self._slot, self._inc_start, self._blk_start, self._params_pp, self._inner,
             self._n_inner,
-            self._pos_inner, INNER_SKIN * nl.skin, nl.wall_pairs, self.whist,
-            self.wforce, self.wtorque, self._wstart, self._params_pw, self._status,
+            self._pos_inner, INNER_SKIN * nl.skin, nl.wall_pairs, ws.whist,
+            ws.wforce, ws.wtorque, self._wstart, self._params_pw, self._status,
             self.wall_work)
 
     def prime(self):
@@ -369,6 +372,30 @@ class Simulation:
                 self._call(0, True)
             self._check_status(None)
             self._primed = True
+
+    def invalidate(self):
+        """Say that the bodies' table or the contact model changed outside :meth:`run`
+        (a friction change, a moved wall): the next step or measure rebuilds the
+        parameter tables and forces first. Contact state is kept."""
+        self._primed = False
+
+    # ------------------------------------------------------------------ public views
+    @property
+    def image_matrix(self):
+        """(d, d) [m]: the periodic cell's matrix H (columns: edge vectors; zero on
+        non-periodic axes), by which a pair's integer image offsets ``img`` become the
+        shift ``img @ image_matrix.T`` of its second body. Zeros without a box. The
+        array is the one the step loop updates (not a copy)."""
+        self.prime()
+        return self._hmat
+
+    def parameter_table(self, bucket):
+        """The contact law's parameter table in use, ``"pp"`` (body-body) or ``"pw"``
+        (body-wall): one row per material pair (:meth:`dem.ContactModel.table`)."""
+        self.prime()
+        if bucket not in ("pp", "pw"):
+            raise ValueError(f"bucket must be 'pp' or 'pw', got {bucket!r}")
+        return self._params_pp if bucket == "pp" else self._params_pw
 
     # ------------------------------------------------------------------ running
     def run(self, n_steps, progress=None):
@@ -570,20 +597,13 @@ class Simulation:
         return out
 
     def _shape_rebuild(self, old):
-        b, nl = self.bodies, self.neighbors
-        m, mw = nl.pairs.shape[0], nl.wall_pairs.shape[0]
-        nr = b.n_rot
-        self.warm = np.zeros((m, N_WARM))
-        self.wwarm = np.zeros((mw, N_WARM))
-        if old[0] is not None and getattr(self, "_old_warm", None) is not None:
-            carry_history(old[0], self._old_warm[0], nl.pairs, self.warm)
-            carry_history(old[2], self._old_warm[1], nl.wall_pairs, self.wwarm)
-        self._old_warm = (self.warm, self.wwarm)
-        self.iters = np.zeros(m, np.int64)
-        self.witers = np.zeros(mw, np.int64)
-        self.tpair = np.zeros((m, 2 * nr))
-        self.pgeom = np.zeros((m, 7))
-        self.wgeom = np.zeros((mw, 7))
+        nl = self.neighbors
+        counts = self._row_counts()
+        ss = self.shape_state = ShapePairState.zeros(counts, self.dim)
+        sw = self.shape_wall_state = ShapeWallState.zeros(counts, self.dim)
+        if old[0] is not None and old[4] is not None:  # ADMM warm starts carry over
+            carry_history(old[0], old[4].warm, nl.pairs, ss.warm)
+            carry_history(old[1], old[5].wwarm, nl.wall_pairs, sw.wwarm)
         self._shape_index()
 
     def _shape_index(self):
@@ -614,7 +634,8 @@ class Simulation:
         incidence(nl.wall_pairs, n, 0, self._winc_start, self._winc_list)
 
     def _shape_call(self, n_steps, prime, resume):
-        b, nl = self.bodies, self.neighbors
+        b, nl, ps, ws = self.bodies, self.neighbors, self.pair_state, self.wall_state
+        ss, sw = self.shape_state, self.shape_wall_state
         if self._has_parts:
             parts = (self._ekind, self._eshape, self._epos, self._erot, self._erad,
                      self._enormal)
@@ -629,36 +650,44 @@ class Simulation:
             b.table.arrays(), self.admm_tol, self.admm_max_iter, self._has_parts,
             self._ebody, self._eoff, self._eq, self._eprad, *parts,
             nl.pairs, self._parts, nl.img,
-            self._order, self._bstart, self._bucket_methods, self.touch,
-            self.hist, self.warm, self.iters, self.pgeom, self.fpair, self.tpair,
+            self._order, self._bstart, self._bucket_methods, ps.touch,
+            ps.hist, ss.warm, ss.iters, ss.pgeom, ps.fpair, ss.tpair,
             self._inc_start, self._inc_list, self._params_pp,
             nl.wall_pairs, self._wparts,
-            self._worder, self._wbstart, self._wall_methods, self.whist,
-            self.wwarm, self.witers, self.wgeom, self.wforce, self.wtorque,
+            self._worder, self._wbstart, self._wall_methods, ws.whist,
+            sw.wwarm, sw.witers, sw.wgeom, ws.wforce, ws.wtorque,
             self._winc_start, self._winc_list, self._params_pw, self._status,
             self.wall_work)
 
     # ------------------------------------------------------------------ state copies
-    #: per-contact arrays of every scene, and of scenes with level-set shapes
-    _CONTACT_STATE = ("hist", "touch", "fpair", "whist", "wforce", "wtorque", "_radius_ref")
-    _SHAPE_STATE = ("warm", "iters", "pgeom", "tpair", "wwarm", "witers", "wgeom")
+    #: the contact-state bundles: attribute name and class (:mod:`dem.state`); the last
+    #: two exist in scenes with non-spherical shapes only
+    BUNDLES = (("pair_state", PairState), ("wall_state", WallState),
+               ("shape_state", ShapePairState), ("shape_wall_state", ShapeWallState))
 
-    def snapshot(self, into=None):
-        """The whole dynamic state as a dict of arrays: bodies, cell, neighbour lists,
-        contact history and the inner list; :meth:`restore` brings it back bit for bit.
-
-        ``into``, a previous snapshot, has its arrays overwritten in place where the
-        shapes still fit (no allocation in the common case of an unchanged list).
-        """
+    def state_bundles(self):
+        """The contact state, ``{attribute name: bundle}``: one row per row of the
+        neighbour lists (:meth:`prime` first). Snapshots, restores and checkpoints
+        iterate it: the fields of the bundles are the whole per-contact state."""
         self.prime()
+        return {name: getattr(self, name) for name, _ in self.BUNDLES[:4 if self.shaped
+                                                                       else 2]}
+
+    def state_arrays(self):
+        """The whole dynamic state as a dict of the arrays themselves (not copies):
+        bodies (``b.`` + :attr:`Bodies.ARRAYS`), neighbour lists (``nl.``), contact
+        state (:meth:`state_bundles`, by field name), the radii at the last build, the
+        clock, the inner list and the cell. :meth:`snapshot` copies it; checkpoints
+        write it."""
         b, nl = self.bodies, self.neighbors
-        snap = {} if into is None else into
-        src = {"b." + k: getattr(b, k) for k in Bodies.ARRAYS}
+        src = {}
+        for bundle in self.state_bundles().values():
+            src.update(bundle._asdict())
+        src.update({"b." + k: getattr(b, k) for k in Bodies.ARRAYS})
         src.update({"nl." + k: getattr(nl, k) for k in ("pairs", "img", "wall_pairs",
                                                          "pos_ref")})
-        names = self._CONTACT_STATE + (self._SHAPE_STATE if self.shaped else ())
-        src.update({k: getattr(self, k) for k in names})
-        src["clock"] = np.array([self.step, nl.n_builds, nl._cap], np.int64)
+        src["radius_ref"] = self._radius_ref
+        src["clock"] = np.array([self.step, nl.n_builds, nl.capacity], np.int64)
         src["wall_work"] = self.wall_work
         if not self.shaped:
             src.update(n_inner=self._n_inner, inner=self._inner, pos_inner=self._pos_inner)
@@ -666,7 +695,16 @@ class Simulation:
             src.update(cell_h=self.cell.h, cell_lgrad=self.cell.lgrad,
                        cellref=self._cellref,
                        cell_n=np.array([self.cell.n_reductions], np.int64))
-        for k, v in src.items():
+        return src
+
+    def snapshot(self, into=None):
+        """A copy of :meth:`state_arrays`; :meth:`restore` brings it back bit for bit.
+
+        ``into``, a previous snapshot, has its arrays overwritten in place where the
+        shapes still fit (no allocation in the common case of an unchanged list).
+        """
+        snap = {} if into is None else into
+        for k, v in self.state_arrays().items():
             old = snap.get(k)
             if old is not None and old.shape == v.shape and old.dtype == v.dtype:
                 np.copyto(old, v)
@@ -676,7 +714,8 @@ class Simulation:
 
     def restore(self, snap):
         """Set the state saved by :meth:`snapshot` (the same scene: same bodies and
-        model). Copies in place; running on repeats the original run bit for bit."""
+        model). Copies in place; running on repeats the original run bit for bit.
+        Checkpoints restart through it too (:func:`dem.io.load_checkpoint`)."""
         b, nl = self.bodies, self.neighbors
 
         def put(obj, name, v):
@@ -692,10 +731,18 @@ class Simulation:
             put(b, k, snap["b." + k])
         for k in ("pairs", "img", "wall_pairs", "pos_ref"):
             put(nl, k, snap["nl." + k])
-        names = self._CONTACT_STATE + (self._SHAPE_STATE if self.shaped else ())
-        for k in names:
-            put(self, k, snap[k])
-        self.step, nl.n_builds, nl._cap = (int(x) for x in snap["clock"])
+        counts = self._row_counts()
+        for name, cls in self.BUNDLES[:4 if self.shaped else 2]:
+            cur = getattr(self, name, None)
+            new = cls.checked(snap, counts, self.dim, "snapshot: ")
+            if cur is not None and all(x.shape == y.shape for x, y in zip(cur, new,
+                                                                            strict=True)):
+                for x, y in zip(cur, new, strict=True):
+                    np.copyto(x, y)
+            else:
+                setattr(self, name, cls(*(x.copy() for x in new)))
+        put(self, "_radius_ref", snap["radius_ref"])
+        self.step, nl.n_builds, nl.capacity = (int(x) for x in snap["clock"])
         self.time = self.step * self.dt
         np.copyto(self.wall_work, snap["wall_work"])
         if self.cell is not None:
@@ -716,7 +763,6 @@ class Simulation:
         pos_inner)`` of the sphere loop; the state counts as primed."""
         self._refresh_tables()
         if self.shaped:
-            self._old_warm = (self.warm, self.wwarm)
             self._shape_index()
         else:
             self._index()
@@ -749,7 +795,7 @@ class Simulation:
         out = {}
         for w in walls:
             rows = wp[:, 1] == w
-            out[int(w)] = -self.wforce[rows].sum(axis=0)
+            out[int(w)] = -self.wall_state.wforce[rows].sum(axis=0)
         return out
 
 

@@ -8,9 +8,11 @@ Walls (planes) are bodies too: fixed, moved only by their prescribed velocity.
 """
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 
+from .contact.detection.admm.solver import N_WARM
 from .rotation import matrix_to_quat, quat_mul, quat_rotate
 from .shapes import Plane, Shape
 from .shapes.table import ShapeTable
@@ -347,3 +349,117 @@ class Bodies:
     def has_shapes(self):
         """Whether any body is neither a sphere nor a plane."""
         return bool(np.any(self.shape >= 0))
+
+
+# --------------------------------------------------------------------------- contacts
+# The contact state is a few bundles: NamedTuples of arrays, one row per row of a
+# neighbour list. Each bundle's ``COLUMNS`` describes its fields; snapshots, restores
+# and checkpoints iterate the bundles (:meth:`dem.Simulation.state_bundles`), so the
+# list of what a step carries to the next exists here only.
+
+class Column(NamedTuple):
+    """How one array of a state bundle is shaped: rows (``"pair"``, ``"wall"`` or
+    ``"body"``), trailing shape (ints and the names ``"d"``, the dimension, ``"r"``, the
+    rotational degrees of freedom, ``"2r"``, twice those), dtype, and what it holds."""
+
+    rows: str
+    tail: tuple
+    dtype: type
+    doc: str
+
+    def shape(self, counts, dim):
+        """The array's shape for ``counts`` {"pair": m, "wall": mw, "body": n}."""
+        sizes = {"d": dim, "r": n_rot(dim), "2r": 2 * n_rot(dim)}
+        return (counts[self.rows], *(sizes.get(t, t) for t in self.tail))
+
+
+def _zeros(cls, counts, dim):
+    """A bundle of zero arrays for ``counts`` {"pair": m, "wall": mw, "body": n}."""
+    return cls(*(np.zeros(c.shape(counts, dim), c.dtype) for c in cls.COLUMNS))
+
+
+def _checked(cls, arrays, counts, dim, where=""):
+    """A bundle of ``arrays`` (a mapping by field name), each checked against its
+    column's shape and dtype; a ValueError names the first that is missing or wrong."""
+    out = []
+    for name, c in zip(cls._fields, cls.COLUMNS, strict=True):
+        if name not in arrays:
+            raise ValueError(f"{where}{name} is missing")
+        a = arrays[name]
+        want = c.shape(counts, dim)
+        if a.shape != want or a.dtype != np.dtype(c.dtype):
+            raise ValueError(f"{where}{name} is {a.dtype}{list(a.shape)}, expected "
+                             f"{np.dtype(c.dtype)}{list(want)}")
+        out.append(a)
+    return cls(*out)
+
+
+def bundle(cls):
+    """Make a NamedTuple of arrays, whose class attribute ``COLUMNS`` describes its
+    fields, a state bundle: it gains the constructors ``zeros(counts, dim)`` and
+    ``checked(arrays, counts, dim, where="")``."""
+    if len(cls.COLUMNS) != len(cls._fields):
+        raise TypeError(f"{cls.__name__}: one column per field")
+    cls.zeros = classmethod(_zeros)
+    cls.checked = classmethod(_checked)
+    return cls
+
+
+@bundle
+class PairState(NamedTuple):
+    """Contact state of every row of the Verlet pair list (row ``k`` of
+    ``neighbors.pairs``): what a step carries to the next."""
+
+    hist: np.ndarray
+    touch: np.ndarray
+    fpair: np.ndarray
+
+    COLUMNS = (Column("pair", (3,), np.float64, "tangential spring [m] (law history)"),
+               Column("pair", (), np.uint8, "1 while the pair touches"),
+               Column("pair", ("d",), np.float64, "contact force on the first body [N]"))
+
+
+@bundle
+class WallState(NamedTuple):
+    """Contact state of every row of the body-wall list (``neighbors.wall_pairs``)."""
+
+    whist: np.ndarray
+    wforce: np.ndarray
+    wtorque: np.ndarray
+
+    COLUMNS = (Column("wall", (3,), np.float64, "tangential spring [m] (law history)"),
+               Column("wall", ("d",), np.float64, "contact force on the body [N]"),
+               Column("wall", ("r",), np.float64, "contact torque on the body [N m]"))
+
+
+#: contact geometry kept per contact: overlap [m] (> 0 while touching), then the
+#: contact point [m] and the normal (3 components each, zero padded in 2D)
+N_GEOM = 7
+
+
+@bundle
+class ShapePairState(NamedTuple):
+    """What scenes with non-spherical shapes add per Verlet pair row."""
+
+    warm: np.ndarray
+    iters: np.ndarray
+    pgeom: np.ndarray
+    tpair: np.ndarray
+
+    COLUMNS = (Column("pair", (N_WARM,), np.float64, "ADMM warm start"),
+               Column("pair", (), np.int64, "ADMM iterations of the last solve"),
+               Column("pair", (N_GEOM,), np.float64, "overlap [m], point [m], normal"),
+               Column("pair", ("2r",), np.float64, "contact torques on both bodies [N m]"))
+
+
+@bundle
+class ShapeWallState(NamedTuple):
+    """What scenes with non-spherical shapes add per body-wall row."""
+
+    wwarm: np.ndarray
+    witers: np.ndarray
+    wgeom: np.ndarray
+
+    COLUMNS = (Column("wall", (N_WARM,), np.float64, "ADMM warm start"),
+               Column("wall", (), np.int64, "ADMM iterations of the last solve"),
+               Column("wall", (N_GEOM,), np.float64, "overlap [m], point [m], normal"))

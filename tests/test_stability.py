@@ -341,4 +341,4 @@ def test_admm_with_too_small_a_cap_names_the_pair():
         pair(1).run(100)
     sim = pair(200)
     sim.run(100)
-    assert sim.iters.max() > 1
+    assert sim.shape_state.iters.max() > 1

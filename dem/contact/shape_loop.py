@@ -59,9 +59,6 @@ from .loops import (_apply_law, _cell_map, _cell_start, _deform_cell, _drift_cen
 M_SPHERES, M_SPHERE_BOX, M_SPHERE_POLY, M_POLY, M_ADMM = 0, 1, 2, 3, 4
 #: wall methods
 W_SPHERE, W_POLY, W_ADMM = 0, 1, 2
-#: per-contact warm-start row of the ADMM solver (see :mod:`dem.contact.detection.admm`)
-N_WARM = 16
-
 _STEPPERS = {}
 
 

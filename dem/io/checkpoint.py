@@ -46,16 +46,8 @@ BODIES_FORMAT = "dem.bodies"
 VERSION = 1
 
 _F8, _I4 = np.dtype(np.float64), np.dtype(np.int32)
-_U1, _B = np.dtype(np.uint8), np.dtype(bool)
+_B = np.dtype(bool)
 
-#: simulation arrays, per pair and per wall pair: (name, trailing shape key, dtype)
-_PAIR_ARRAYS = (("hist", "3", _F8), ("touch", "", _U1), ("fpair", "d", _F8))
-_WALL_ARRAYS = (("whist", "3", _F8), ("wforce", "d", _F8), ("wtorque", "r", _F8))
-#: scenes with level-set shapes add: ADMM warm starts, iterations, contact geometry
-_SHAPE_PAIR_ARRAYS = (("warm", "16", _F8), ("iters", "", np.dtype(np.int64)),
-                      ("pgeom", "7", _F8), ("tpair", "2r", _F8))
-_SHAPE_WALL_ARRAYS = (("wwarm", "16", _F8), ("witers", "", np.dtype(np.int64)),
-                      ("wgeom", "7", _F8))
 
 
 def _body_spec(dim):
@@ -82,12 +74,6 @@ _TABLE_SPEC = (("kind", (), _I8, "ns"), ("param", (4,), _F8, "ns"), ("scale", ()
 _COMPOUND_NAMES = ("cstart", "part_kind", "part_row", "part_off", "part_rot", "part_rad")
 #: shape-table kinds a file may hold (spheres and planes have no row; custom SDFs are code)
 _STORABLE_KINDS = (Shape.BOX, Shape.POLYGON, Shape.POLYHEDRON, Shape.COMPOUND)
-
-
-def _trailing(key, dim):
-    nr = 1 if dim == 2 else 3
-    return {"": (), "3": (3,), "d": (dim,), "r": (nr,), "16": (16,), "7": (7,),
-            "2r": (2 * nr,)}[key]
 
 
 # ------------------------------------------------------------------ bodies
@@ -262,7 +248,8 @@ def save_checkpoint(sim, path, extra=None):
     str
         ``path``.
     """
-    sim.prime()
+    # the state as a snapshot has it; the file keeps its own layout (module docstring)
+    state = sim.state_arrays()
     nl = sim.neighbors
 
     def fill(f):
@@ -277,7 +264,7 @@ def save_checkpoint(sim, path, extra=None):
         f.attrs["skin"] = float(nl.skin)
         f.attrs["backend"] = str(nl.backend)
         f.attrs["n_builds"] = int(nl.n_builds)
-        f.attrs["capacity"] = int(getattr(nl, "_cap", 0))
+        f.attrs["capacity"] = int(nl.capacity)
         f.attrs["has_box"] = sim.box is not None
         f.attrs["detection"] = str(sim.detection)
         f.attrs["admm_tol"] = float(sim.admm_tol)
@@ -292,7 +279,7 @@ def save_checkpoint(sim, path, extra=None):
             g = f.create_group("cell")
             for name in ("h", "lgrad", "origin"):
                 g.create_dataset(name, data=getattr(sim.cell, name))
-            g.create_dataset("cellref", data=sim._cellref)
+            g.create_dataset("cellref", data=state["cellref"])
             g.attrs["n_reductions"] = int(sim.cell.n_reductions)
         elif sim.box is not None:
             g = f.create_group("box")
@@ -300,23 +287,19 @@ def save_checkpoint(sim, path, extra=None):
             g.create_dataset("hi", data=np.asarray(sim.box.hi, dtype=np.float64))
             g.create_dataset("periodic", data=np.asarray(sim.box.periodic, dtype=bool))
         g = f.create_group("contacts")
-        for name, _, _ in _PAIR_ARRAYS + _WALL_ARRAYS:
-            if hasattr(sim, name):  # "touch" is absent from older cores
-                g.create_dataset(name, data=getattr(sim, name))
-        g.create_dataset("radius_ref", data=sim._radius_ref)
-        if sim.shaped:
-            for name, _, _ in _SHAPE_PAIR_ARRAYS + _SHAPE_WALL_ARRAYS:
-                g.create_dataset(name, data=getattr(sim, name))
-        else:
+        for name in _CONTACT_KEYS:
+            if name in state:
+                g.create_dataset(name, data=state[name])
+        if not sim.shaped:
             # the inner list decides when the Verlet list is rebuilt: part of the state
-            n_inner = int(sim._n_inner[0])
+            n_inner, n_internal = (int(x) for x in state["n_inner"])
             g.attrs["n_inner"] = n_inner
-            g.attrs["n_internal"] = int(sim._n_inner[1])
-            g.create_dataset("inner", data=sim._inner[:max(n_inner, 0)])
-            g.create_dataset("pos_inner", data=sim._pos_inner)
+            g.attrs["n_internal"] = n_internal
+            g.create_dataset("inner", data=state["inner"][:max(n_inner, 0)])
+            g.create_dataset("pos_inner", data=state["pos_inner"])
         g = f.create_group("model")
-        g.create_dataset("params_pp", data=sim._params_pp)
-        g.create_dataset("params_pw", data=sim._params_pw)
+        for bucket in ("pp", "pw"):
+            g.create_dataset("params_" + bucket, data=sim.parameter_table(bucket))
         if extra is not None:
             extra(f)
 
@@ -364,22 +347,10 @@ def load_checkpoint(path, model, observers=(), controllers=(), state_objects=())
                      state_objects=state_objects, allow_unstable_dt=True,
                      detection=a["detection"], admm_tol=a["admm_tol"],
                      admm_max_iter=a["admm_max_iter"])
-    sim.step = a["step"]
-    sim.time = a["time"]
-    sim.wall_work = state["wall_work"]
-    nl = sim.neighbors
-    for name, value in state["neighbors"].items():
-        setattr(nl, name, value)
-    nl.n_builds = a["n_builds"]
-    nl._cap = a["capacity"]
-    for name, value in state["contacts"].items():
-        setattr(sim, name, value)
-    sim._radius_ref = state["radius_ref"]
-    if state["cellref"] is not None:
-        sim._cellref[:] = state["cellref"]
-    sim._reindex(state["inner"])
-    for name in ("params_pp", "params_pw"):
-        saved, now = state["model"].get(name), getattr(sim, "_" + name)
+    sim.restore(_snapshot(state))
+    for bucket in ("pp", "pw"):
+        name = "params_" + bucket
+        saved, now = state["model"].get(name), sim.parameter_table(bucket)
         if saved is not None and not (saved.shape == now.shape
                                       and np.array_equal(saved, now, equal_nan=True)):
             log.warning("%s: the contact model differs from the saved one (%s); the "
@@ -430,20 +401,16 @@ def _read_checkpoint(path, f):
                              f"0..{n - 1}")
     g = f["contacts"]
     contacts = {}
-    for rows, spec in ((m, _PAIR_ARRAYS), (mw, _WALL_ARRAYS)):
-        for name, tail, dtype in spec:
+    counts = {"pair": m, "wall": mw, "body": n}
+    for _, cls in Simulation.BUNDLES[:4 if bodies.has_shapes else 2]:
+        for name, col in zip(cls._fields, cls.COLUMNS, strict=True):
             if name in g:
                 contacts[name] = _checked(path, f"contacts/{name}", g[name],
-                                          (rows, *_trailing(tail, d)), dtype)
-            elif name != "touch":
+                                          col.shape(counts, d), np.dtype(col.dtype))
+            elif name == "touch":  # older files: a pair with history was touching
+                contacts[name] = np.any(contacts["hist"] != 0.0, axis=1).astype(np.uint8)
+            else:
                 raise ValueError(f"{path}: contacts/{name} is missing")
-    if bodies.has_shapes:
-        for rows, spec in ((m, _SHAPE_PAIR_ARRAYS), (mw, _SHAPE_WALL_ARRAYS)):
-            for name, tail, dtype in spec:
-                if name not in g:
-                    raise ValueError(f"{path}: contacts/{name} is missing")
-                contacts[name] = _checked(path, f"contacts/{name}", g[name],
-                                          (rows, *_trailing(tail, d)), dtype)
     radius_ref = _checked(path, "contacts/radius_ref", g["radius_ref"], (n,), _F8)
     n_inner = int(g.attrs.get("n_inner", -1))
     n_internal = int(g.attrs.get("n_internal", -1))
@@ -479,6 +446,31 @@ def _read_checkpoint(path, f):
             "wall_work": wall_work, "neighbors": neighbors, "contacts": contacts,
             "radius_ref": radius_ref, "box": box, "cellref": cellref, "model": model,
             "inner": (n_inner, n_internal, inner, pos_inner)}
+
+
+#: the contact-state fields a checkpoint keeps under /contacts (:attr:`Simulation.BUNDLES`)
+_CONTACT_KEYS = tuple(k for _, cls in Simulation.BUNDLES for k in cls._fields) \
+    + ("radius_ref",)
+
+
+def _snapshot(state):
+    """The :meth:`Simulation.snapshot` of the state read from a checkpoint."""
+    a, b, nl = state["attrs"], state["bodies"], state["neighbors"]
+    snap = {"b." + k: getattr(b, k) for k in Bodies.ARRAYS}
+    snap.update({"nl." + k: v for k, v in nl.items()})
+    snap.update(state["contacts"])
+    snap["radius_ref"] = state["radius_ref"]
+    snap["clock"] = np.array([a["step"], a["n_builds"], a["capacity"]], np.int64)
+    snap["wall_work"] = state["wall_work"]
+    n_inner, n_internal, inner, pos_inner = state["inner"]
+    snap["n_inner"] = np.array([n_inner, n_internal], np.int64)
+    snap["inner"] = inner
+    snap["pos_inner"] = pos_inner if pos_inner is not None else b.pos
+    box = state["box"]
+    if isinstance(box, PeriodicCell):
+        snap.update(cell_h=box.h, cell_lgrad=box.lgrad, cellref=state["cellref"],
+                    cell_n=np.array([box.n_reductions], np.int64))
+    return snap
 
 
 def read_group(path, name, max_elements=10**6):

@@ -159,7 +159,7 @@ def test_thread_count_does_not_change_a_deforming_run():
                              damping=0.3, threads=threads)
         cell.lgrad[:] = [[-2e-3, 1e-3], [0.0, -1e-3]]
         sim.run(3000)
-        out.append((bodies.pos.copy(), cell.h.copy(), sim.fpair.copy()))
+        out.append((bodies.pos.copy(), cell.h.copy(), sim.pair_state.fpair.copy()))
     for a, b in zip(out[0], out[1], strict=True):
         assert np.array_equal(a, b)
 
@@ -181,7 +181,7 @@ def test_checkpoint_of_a_deforming_cell_restarts_bit_for_bit(tmp_path):
     again.run(1500)
     assert np.array_equal(again.bodies.pos, sim.bodies.pos)
     assert np.array_equal(again.cell.h, cell.h)
-    assert np.array_equal(again.hist, sim.hist)
+    assert np.array_equal(again.pair_state.hist, sim.pair_state.hist)
 
 
 def test_cell_refuses_what_it_cannot_run():

@@ -211,8 +211,8 @@ def test_a_compound_of_one_part_is_that_part(dim):
             sim.run(30)
             touched += len(sim.contacts()["i"])
         assert touched > 20
-        runs.append((b.pos.copy(), b.rot.copy(), b.vel.copy(), sim.hist.copy(),
-                     sim.whist.copy()))
+        runs.append((b.pos.copy(), b.rot.copy(), b.vel.copy(), sim.pair_state.hist.copy(),
+                     sim.wall_state.whist.copy()))
     for a, c in zip(*runs, strict=True):
         assert np.array_equal(a, c)
 
@@ -274,8 +274,8 @@ def test_elastic_collision_of_two_compounds_conserves():
     for _ in range(300):
         sim.run(25)
         c = sim.contacts()
-        touched.update(zip(c["i"], c["j"], sim._parts[sim.pgeom[:, 0] > 0.0, 0],
-                           sim._parts[sim.pgeom[:, 0] > 0.0, 1], strict=True))
+        touched.update(zip(c["i"], c["j"], sim._parts[sim.shape_state.pgeom[:, 0] > 0.0, 0],
+                           sim._parts[sim.shape_state.pgeom[:, 0] > 0.0, 1], strict=True))
     assert len(touched) >= 2, f"parts that met: {touched}"
     assert len(sim.contacts()["i"]) == 0, "still in contact at the end"
     scale = np.sum(b.mass * np.linalg.norm(b.vel, axis=1))

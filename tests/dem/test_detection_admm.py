@@ -538,7 +538,7 @@ def test_admm_in_a_non_convex_corner_falls_back_then_stops_clearly():
         n = len(sim.contacts()["i"])
         if n:
             contacts, steps = max(contacts, n), steps + 1
-            rescued += int(sim.iters.max() > WARM_MAX_ITER)
+            rescued += int(sim.shape_state.iters.max() > WARM_MAX_ITER)
         elif contacts:
             break  # bounced off
     assert contacts == 2 and 1 <= rescued < steps

@@ -137,11 +137,11 @@ def test_compiled_response_equals_the_contact_by_contact_sums(name, request):
     packing.cell.lgrad[:] = 0.0
     out = packing.response()
     b, nl = sim.bodies, sim.neighbors
-    geometry = sim.pgeom if sim.shaped else None
+    geometry = sim.shape_state.pgeom if sim.shaped else None
     ref = naive.periodic_homogenisation(b.pos, b.vel, b.mass, b.radius, packing.cell.h,
-                                        nl.pairs, nl.img, sim.fpair, LAW.kn, LAW.kt,
+                                        nl.pairs, nl.img, sim.pair_state.fpair, LAW.kn, LAW.kt,
                                         packing.volume, geometry=geometry)
-    assert np.any(nl.img[sim.fpair.any(axis=1)] != 0)  # contacts across the boundary
+    assert np.any(nl.img[sim.pair_state.fpair.any(axis=1)] != 0)  # contacts across the boundary
     assert np.abs(packing.cell.h[0, 1]) > 0.0
     assert out["n_contacts"] == ref["n_contacts"] > 0
     for key in ("stress", "tangent", "fabric"):

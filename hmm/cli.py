@@ -25,7 +25,7 @@ import math
 import sys
 from pathlib import Path
 
-from dem.cli import Parser, UsageError
+from dem.cli import Parser, UsageError, version_line
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
@@ -34,6 +34,8 @@ log = logging.getLogger(__name__)
 
 def _parser():
     p = Parser(prog="hmm", description="Multiscale FEM x DEM runs.")
+    p.add_argument("--version", action="version", version=version_line("hmm"),
+                   help="print the version and exit")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     common = Parser(add_help=False)
     common.add_argument("-o", "--output", type=Path, metavar="DIR",

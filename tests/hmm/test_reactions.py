@@ -2,7 +2,6 @@
 holds and only those; the supports balance the applied loads; the printed unit is
 N/m in 2D (per unit thickness) and N in 3D."""
 
-import copy
 import re
 
 import numpy as np
@@ -124,14 +123,22 @@ def test_a_corner_held_by_two_supports_counts_once(tmp_path, dim, kinematics, mo
 
 
 def test_saturated_supports_hold_only_their_components(tmp_path):
-    """A consolidating column (test_porous_problem's): the base carries the whole
+    """A consolidating column (as test_porous_problem's): the base carries the whole
     load in y, the side rollers nothing in y (their corners with the base are the
     base's in y), and the reactions balance the load."""
-    from tests.hmm.test_porous_problem import COLUMN, Q as q
-
-    problem = validate_problem(copy.deepcopy(COLUMN))
+    q, width = 1e4, 0.1
+    problem = validate_problem({
+        "mesh": {"dim": 2, "element": "quad8", "size": [width, 1.0], "cells": [1, 8]},
+        "dirichlet": [{"boundary": "bottom", "component": "y"},
+                      {"boundary": "left", "component": "x"},
+                      {"boundary": "right", "component": "x"}],
+        "pressure": [{"boundary": "top", "value": q, "ramp": True}],
+        "load": {"steps": 12},
+        "fluid": {"permeability": 1.2e-10, "bulk_modulus": 2.2e9},
+        "drainage": [{"boundary": "top", "pressure": 0.0}],
+        "time": {"end": 1.0, "first": 0.01},
+        "micro": {"model": "linear_elastic", "young": 1e7, "poisson": 0.25}})
     s = run_problem(problem, tmp_path / "out", progress=False)
-    width = COLUMN["mesh"]["size"][0]
     r = s["reactions"]
     assert r["bottom"][1] == pytest.approx(q * width, rel=1e-6)
     assert r["left"][1] == 0.0 and r["right"][1] == 0.0 and r["bottom"][0] == 0.0

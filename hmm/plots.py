@@ -59,7 +59,8 @@ def load_displacement_figure(curve, driven, dim):
     driven : sequence of (str, int)
         ``(boundary, component)`` of every prescribed non-zero displacement: one
         curve each, the boundary's reaction in that component against its mean
-        displacement there, both signed so that a push into the body is positive.
+        displacement there, both along the direction it moves (``-y`` for a top
+        pushed down), so that the curve rises from the origin.
     dim : int
         2 (forces per unit thickness, N/m) or 3 (N).
 
@@ -79,18 +80,18 @@ def load_displacement_figure(curve, driven, dim):
         if u.ndim != 2 or u.shape[0] == 0 or not np.any(u[:, a] != 0.0):
             continue  # nothing moved: a vertical line would say nothing
         sign = -1.0 if u[-1, a] < 0.0 else 1.0  # plot shortening as positive
-        series.append((b, a, sign * u[:, a], sign * f[:, a]))
+        series.append((b, f"{'-' if sign < 0 else '+'}{_AXES[a]}", sign * u[:, a],
+                       sign * f[:, a]))
     base = "N/m" if dim == 2 else "N"
     fu, ulabel = length_unit([s[2] for s in series] or [0.0])
     ff, flabel = scaled_unit(np.concatenate([s[3] for s in series]) if series else [],
                              base)
-    for b, a, u, f in series:
-        ax.plot(fu * u, ff * f, "o-", ms=3, label=f"{b} ({_AXES[a]})")
+    for b, direction, u, f in series:
+        ax.plot(fu * u, ff * f, "o-", ms=3, label=f"{b} ({direction})")
     if len(series) == 1:
-        b, a = series[0][:2]
-        ax.set_xlabel(f"displacement of {b} in {_AXES[a]} [{ulabel}] "
-                      f"(positive: into the body)")
-        ax.set_ylabel(f"reaction on {b} in {_AXES[a]} [{flabel}]")
+        b, direction = series[0][:2]
+        ax.set_xlabel(f"displacement of {b} in {direction} [{ulabel}]")
+        ax.set_ylabel(f"reaction on {b} in {direction} [{flabel}]")
     else:
         ax.set_xlabel(f"prescribed displacement [{ulabel}] (positive: into the body)")
         ax.set_ylabel(f"reaction in the driven direction [{flabel}]")

@@ -50,8 +50,8 @@ def test_the_load_displacement_figure_shows_the_driven_force_in_mm_and_kn():
     x, y = ax.lines[0].get_data()
     np.testing.assert_allclose(x, 1e3 * 8e-4 * np.linspace(0.0, 1.0, 9))  # [mm]
     np.testing.assert_allclose(y, 1e-3 * -c["force/top"][:, 1])  # [kN/m], push positive
-    assert ax.get_xlabel().startswith("displacement of top in y [mm]")
-    assert ax.get_ylabel() == "reaction on top in y [kN/m]"
+    assert ax.get_xlabel() == "displacement of top in -y [mm]"
+    assert ax.get_ylabel() == "reaction on top in -y [kN/m]"
     assert ax.get_legend() is None  # one curve: the labels say what it is
     _no_overlap(fig, ax)
 
@@ -62,7 +62,7 @@ def test_several_driven_boundaries_get_a_legend_and_3d_forces_are_in_newtons():
     c["force/right"] = 0.5 * c["force/top"][:, ::-1]
     fig = load_displacement_figure(c, [("top", 1), ("right", 0)], 3)
     ax = fig.axes[0]
-    assert [line.get_label() for line in ax.lines] == ["top (y)", "right (x)"]
+    assert [line.get_label() for line in ax.lines] == ["top (-y)", "right (+x)"]
     assert ax.get_legend() is not None
     assert ax.get_xlabel().startswith("prescribed displacement [mm]")
     assert ax.get_ylabel() == "reaction in the driven direction [N]"

@@ -194,3 +194,22 @@ def test_the_printed_reaction_names_held_components_and_the_unit(tmp_path, capsy
     assert "reaction on bottom: y = 8000 N/m" in out
     left = next(line for line in out.splitlines() if line.startswith("reaction on left"))
     assert re.fullmatch(r"reaction on left: x = \S+ N/m", left)  # x only: held in x
+
+
+def test_a_point_support_reports_its_reaction(tmp_path):
+    """A smooth base held in x at one vertex, a top traction with a shear part: the
+    point alone holds the body against sliding, so its reaction is minus the shear
+    force, and the base's is the weight of the normal part."""
+    problem = validate_problem({
+        "mesh": {"size": [1.0, 1.0], "cells": [2, 2]},
+        "dirichlet": [{"boundary": "bottom", "component": "y"},
+                      {"point": [0.5, 0.0], "component": "x"}],
+        "traction": [{"boundary": "top", "value": [300.0, -2e3]}],
+        "micro": {"model": "linear_elastic", "young": E, "poisson": NU},
+        "load": {"steps": 1}})
+    s = run_problem(problem, tmp_path / "out", progress=False)
+    r = s["reactions"]
+    assert set(r) == {"bottom", "point (0.5, 0)"}
+    assert s["held"]["point (0.5, 0)"] == (0,)
+    assert r["point (0.5, 0)"][0] == pytest.approx(-300.0, rel=1e-9)
+    assert r["bottom"] == pytest.approx([0.0, 2e3], rel=1e-9)

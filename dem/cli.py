@@ -28,8 +28,31 @@ class UsageError(Exception):
     """A bad command line; the message is one line."""
 
 
+def version_line(prog):
+    """``PROG VERSION``: the version of the installed ``femxdem`` distribution (the
+    package metadata), as ``--version`` prints it."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return f"{prog} {version('femxdem')}"
+    except PackageNotFoundError:
+        return f"{prog} (femxdem not installed: version unknown)"
+
+
+def refuse_existing(paths, overwrite):
+    """Raise FileExistsError naming the first of ``paths`` that exists, unless
+    ``overwrite``: the rule of every command that writes files."""
+    existing = [p for p in paths if Path(p).exists()]
+    if existing and not overwrite:
+        raise FileExistsError(f"output file {existing[0]} exists; pass --overwrite to "
+                              f"replace it or choose another directory with --output")
+    return existing
+
+
 def _parser():
     parser = Parser(prog="dem", description="DEM simulations from TOML scene files.")
+    parser.add_argument("--version", action="version", version=version_line("dem"),
+                        help="print the version and exit")
     parser.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
                         help="more log messages (-vv for debug)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
@@ -160,10 +183,7 @@ def _open_writer(path, output, overwrite):
     Refuses (FileExistsError) to replace an existing HDF5 or XDMF file unless
     ``overwrite``.
     """
-    existing = [p for p in (path, path.with_suffix(".xdmf")) if p.exists()]
-    if existing and not overwrite:
-        raise FileExistsError(f"output file {existing[0]} exists; pass --overwrite to "
-                              f"replace it or choose another directory with --output")
+    existing = refuse_existing((path, path.with_suffix(".xdmf")), overwrite)
     try:
         from .io.hdf5 import H5Writer
     except ImportError as exc:

@@ -1,6 +1,6 @@
 """Demo: pour a few hundred spheres into an open box and let them settle.
 
-``python -m dem.demo [--out DIR]`` (or ``make demo``) drops spheres from random,
+``python -m dem.demo [-o DIR] [--overwrite]`` drops spheres from random,
 non-overlapping positions into a box of five walls under gravity, with a linear
 spring-dashpot law (restitution 0.3) and Coulomb friction, runs until the packing is
 near rest and writes
@@ -189,14 +189,23 @@ def visualize(result):
     return fig
 
 
-def main(argv=None):
-    """Command line entry point: ``python -m dem.demo [--out DIR] [--n N] ...``."""
-    parser = argparse.ArgumentParser(
+def _parser():
+    from .cli import Parser, version_line
+
+    parser = Parser(
         prog="python -m dem.demo",
         description="Pour spheres into a box under gravity until they settle; write "
-                    "HDF5 + XDMF frames and a PNG summary.")
-    parser.add_argument("--out", default=os.path.join("output", "demo"),
-                        help="output directory (default: %(default)s)")
+                    "HDF5 + XDMF frames and a PNG summary.",
+        epilog="Exit status: 0 done, 2 bad input (bad arguments, existing output "
+               "without --overwrite).")
+    parser.add_argument("--version", action="version", version=version_line("dem"),
+                        help="print the version and exit")
+    parser.add_argument("-o", "--output", default=os.path.join("output", "demo"),
+                        metavar="DIR", help="output directory (default: %(default)s)")
+    parser.add_argument("--out", dest="output", metavar="DIR", default=argparse.SUPPRESS,
+                        help=argparse.SUPPRESS)  # deprecated spelling
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace existing output files")
     parser.add_argument("--n", type=int, default=300,
                         help="number of spheres (default: %(default)s)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
@@ -205,16 +214,46 @@ def main(argv=None):
     parser.add_argument("--threads", type=int, default=1,
                         help="numba threads (default: 1; a scene this small runs "
                              "fastest on one)")
-    args = parser.parse_args(argv)
-    if args.n < 1:
-        parser.error("--n must be at least 1")
-    if args.threads < 1:
-        parser.error("--threads must be at least 1")
+    return parser
+
+
+def main(argv=None):
+    """Command line entry point: ``python -m dem.demo [-o DIR] [--overwrite] [--n N]
+    ...``; returns the exit status (0 done, 2 bad input: a bad argument, or an
+    existing output without ``--overwrite``). ``--out`` is a deprecated spelling of
+    ``--output``."""
+    import sys
+
+    from .cli import UsageError, refuse_existing
+
+    def error(msg):
+        print("python -m dem.demo: error: " + " ".join(str(msg).split()), file=sys.stderr)
+        return 2
+
+    try:
+        args = _parser().parse_args(argv)
+        if args.n < 1:
+            raise UsageError("--n must be at least 1")
+        if args.threads < 1:
+            raise UsageError("--threads must be at least 1")
+    except UsageError as exc:
+        return error(exc)
+    if argv is None:
+        argv = sys.argv[1:]
+    if any(a == "--out" or a.startswith("--out=") for a in argv):
+        print("python -m dem.demo: warning: --out is deprecated, use -o/--output",
+              file=sys.stderr)
+    files = [os.path.join(args.output, f) for f in ("pour.h5", "pour.xdmf", "pour.png")]
+    try:
+        for f in refuse_existing(files, args.overwrite):
+            os.remove(f)
+    except OSError as exc:
+        return error(exc)
     set_threads(args.threads)
     logging.basicConfig(level=logging.WARNING)
     print(f"pouring {args.n} spheres (the first run compiles the kernels) ...")
-    result = run_demo(args.out, n_spheres=args.n, seed=args.seed, t_max=args.t_max)
-    png = os.path.join(args.out, "pour.png")
+    result = run_demo(args.output, n_spheres=args.n, seed=args.seed, t_max=args.t_max)
+    png = os.path.join(args.output, "pour.png")
     visualize(result).savefig(png, dpi=120)
     sim = result["sim"]
     state = "near rest" if result["at_rest"] else "not yet at rest"

@@ -25,7 +25,7 @@ import math
 import sys
 from pathlib import Path
 
-from dem.cli import Parser, UsageError
+from dem.cli import Parser, UsageError, version_line
 
 EXIT_OK, EXIT_FAILED, EXIT_USAGE = 0, 1, 2
 
@@ -34,6 +34,8 @@ log = logging.getLogger(__name__)
 
 def _parser():
     p = Parser(prog="hmm", description="Multiscale FEM x DEM runs.")
+    p.add_argument("--version", action="version", version=version_line("hmm"),
+                   help="print the version and exit")
     sub = p.add_subparsers(dest="command", metavar="COMMAND", parser_class=Parser)
     common = Parser(add_help=False)
     common.add_argument("-o", "--output", type=Path, metavar="DIR",
@@ -179,13 +181,27 @@ def _solve(problem, args, prog):
     if "p" in summary:  # a saturated problem
         print(f"time {summary['time']:.6g} s, pore pressure {summary['p'].min():.4g} "
               f"to {summary['p'].max():.4g} Pa")
-    for name, f in summary["reactions"].items():
-        print(f"reaction on {name}: " + ", ".join(f"{x:.4g}" for x in f) + " N")
+    for line in reaction_lines(summary):
+        print(line)
     print("output:")
     for f in summary["files"]:
         if Path(f).exists():
             print(f"  {f}")
     return EXIT_OK
+
+
+def reaction_lines(summary):
+    """``reaction on NAME: x = ..., y = ... UNIT``, one line per support of a run's
+    ``summary``: the components the support holds, in N/m in 2D (plane strain, per
+    unit thickness) and N in 3D."""
+    unit = "N/m" if summary.get("dim", 3) == 2 else "N"
+    held = summary.get("held", {})
+    lines = []
+    for name, f in summary["reactions"].items():
+        comps = held.get(name, range(len(f)))
+        lines.append(f"reaction on {name}: "
+                     + ", ".join(f"{'xyz'[c]} = {f[c]:.4g}" for c in comps) + f" {unit}")
+    return lines
 
 
 def _share_cores(n_ranks):

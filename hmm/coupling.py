@@ -86,17 +86,79 @@ class SolverSettings:
 class Supports:
     """Prescribed displacements: ``dofs`` and their values at the end of the schedule
     (load factor 1), ramped linearly with the load factor, or given along the
-    schedule by ``path(t) -> values`` (e.g. a rigid rotation)."""
+    schedule by ``path(t) -> values`` (e.g. a rigid rotation).
+
+    A support's reaction is the sum of the unbalanced nodal force over the degrees
+    of freedom it holds, and only those: ``held`` names them (``{name: {component:
+    dofs}}``; :meth:`from_conditions` builds it). Without ``held``, each of the
+    ``boundaries`` holds the components in which all its degrees of freedom are
+    prescribed, less the corners a boundary listed before it holds.
+    """
 
     dofs: np.ndarray
     values: np.ndarray
-    #: boundaries whose reaction forces are reported
+    #: boundaries whose reaction forces make the load-displacement curve
     boundaries: tuple = ()
     #: optional ``path(t)``: the prescribed values at load factor ``t``
     path: object = None
     #: groups of degrees of freedom that move as one (each a rigid, frictionless
     #: platen in one component, pushed by the loads on it): no reaction, one unknown
     ties: tuple = ()
+    #: optional ``{name: {component: dofs}}``: the degrees of freedom whose
+    #: reaction each support reports (each prescribed dof in one support at most)
+    held: dict = None
+
+    @classmethod
+    def from_conditions(cls, conditions, boundaries=None, ties=()):
+        """Supports from ``(name, component, dofs, value)`` conditions, in order.
+
+        ``value`` [m] is a number or one per dof (at load factor 1). A dof named by
+        two conditions (the corner of two supported edges) takes the value of the
+        first and belongs to its support alone, so that the reactions of all the
+        supports sum to the whole force on the prescribed dofs; ``name`` None: no
+        reaction reported. ``boundaries`` (default: every name) make the
+        load-displacement curve.
+        """
+        dofs, values, owner = [], [], []
+        for i, (_, _, k, v) in enumerate(conditions):
+            k = np.asarray(k, dtype=np.int64).ravel()
+            dofs.append(k)
+            values.append(np.broadcast_to(np.asarray(v, dtype=np.float64), k.shape))
+            owner.append(np.full(k.size, i))
+        if not dofs:
+            return cls(np.zeros(0, np.int64), np.zeros(0), (), ties=tuple(ties), held={})
+        dofs, first = np.unique(np.concatenate(dofs), return_index=True)
+        owner = np.concatenate(owner)[first]
+        held = {}
+        for i, (name, comp, _, _) in enumerate(conditions):
+            if name is None:
+                continue
+            mine = held.setdefault(name, {})
+            mine[comp] = np.union1d(mine.get(comp, np.zeros(0, np.int64)),
+                                    dofs[owner == i])
+        if boundaries is None:
+            boundaries = tuple(held)
+        return cls(dofs, np.concatenate(values)[first], tuple(boundaries),
+                   ties=tuple(ties), held=held)
+
+    def owned(self, macro):
+        """``{name: {component: dofs}}``: the degrees of freedom whose reaction each
+        support reports (:attr:`held`, or, per boundary of :attr:`boundaries`, the
+        components in which it is wholly prescribed, less the dofs of a boundary
+        before it)."""
+        if self.held is not None:
+            return self.held
+        taken = np.zeros(0, np.int64)
+        out = {}
+        for name in self.boundaries:
+            out[name] = {}
+            for c in range(macro.dim):
+                k = macro.dofs(name, c)
+                if not np.all(np.isin(k, self.dofs)):  # only some (corners): not held
+                    continue
+                out[name][c] = np.setdiff1d(k, taken)
+                taken = np.union1d(taken, k)
+        return out
 
     def increment(self, t, h):
         """The change of the prescribed values from load factor ``t`` to ``t + h``."""
@@ -202,6 +264,7 @@ class Solver:
         farm.rollback()
         self.free = np.setdiff1d(np.arange(n), supports.dofs)
         self._tie = tie_map(n, supports.ties, supports.dofs) if supports.ties else None
+        self._held = supports.owned(macro)
         # displacements below round-off of the mesh size count as zero
         self._u_floor = 1e-12 * float(np.ptp(macro.mesh.p, axis=1).max())
         self.iterations = []  # Newton iterations of each converged step
@@ -227,14 +290,25 @@ class Solver:
         return k
 
     def reactions(self):
-        """Force [N] the supports exert on the body, per supported boundary, at the
-        committed state (``{boundary: (d,)}``): the internal force that external
-        loads do not balance (on the current configuration under finite
-        kinematics)."""
+        """Force the supports exert on the body, per support, at the committed state
+        (``{name: (d,)}``) [N in 3D, N/m in 2D (plane strain, per unit
+        thickness)]: the internal force that external loads do not balance (on the
+        current configuration under finite kinematics), summed over the degrees of
+        freedom the support holds (:meth:`Supports.owned`); a component it does not
+        hold is zero."""
         r = self._unbalanced()
-        return {name: np.array([r[self.macro.dofs(name, c)].sum()
-                                for c in range(self.macro.dim)])
-                for name in self.supports.boundaries}
+        out = {}
+        for name, held in self._held.items():
+            f = np.zeros(self.macro.dim)
+            for c, k in held.items():
+                f[c] = r[k].sum()
+            out[name] = f
+        return out
+
+    def held_components(self):
+        """``{name: (components,)}``: the displacement components each support
+        holds (those of :meth:`reactions` that are not zero by definition)."""
+        return {name: tuple(sorted(held)) for name, held in self._held.items()}
 
     def _unbalanced(self):
         """Internal minus external nodal force at the committed state [N]."""

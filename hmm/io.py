@@ -79,8 +79,8 @@ def _second_panel(dem, void):
     says nothing; the void ratio (the dilation inside a band) says more.
     """
     if np.all(dem >= 1.0) and np.all(np.isfinite(void)):
-        return void, "void ratio", "magma", (None, None)
-    return dem, "share of Gauss points running DEM", "Greys", (0.0, 1.0)
+        return void, "void ratio [-]", "magma", (None, None)
+    return dem, "share of Gauss points running DEM [-]", "Greys", (0.0, 1.0)
 
 
 class Output:
@@ -381,26 +381,13 @@ class Output:
 
         matplotlib.use("Agg")
         import matplotlib.pyplot as plt
-        from matplotlib.collections import PolyCollection
+
+        from .plots import fields_figure, load_displacement_figure
 
         c = {k: np.asarray(v) for k, v in self.curve.items()}
-        fig, ax = plt.subplots(figsize=(5.5, 4))
         d = self.macro.dim
-        for b, a in self.driven:
-            u, f = c[f"displacement/{b}"], c[f"force/{b}"]
-            if u.size == 0:
-                continue
-            sign = -1.0 if u[-1, a] < 0.0 else 1.0  # plot shortening as positive
-            ax.plot(1e3 * sign * u[:, a], sign * f[:, a], "o-", ms=3,
-                    label=f"{b}, {_AXES[a]} component")
-        ax.set_xlabel("prescribed displacement [mm] (positive: into the sample)")
-        ax.set_ylabel("reaction force [N]" + (" per m thickness" if d == 2 else ""))
-        ax.grid(alpha=0.3)
-        if ax.lines:
-            ax.legend()
-        fig.tight_layout()
-        save_figure(fig, self.dir / "load_displacement.png")
-        plt.close(fig)
+        save_figure(load_displacement_figure(c, self.driven, d),
+                    self.dir / "load_displacement.png")
         if self.porous is not None:
             self._pressure_plot(plt, c)
         if d != 2 or not self.frames:
@@ -416,26 +403,13 @@ class Output:
         span = np.ptp(mesh.p, axis=1).max()
         if np.abs(disp).max() > 0.0 and not self.macro.finite:  # finite: the true shape
             scale = min(10.0, 0.1 * span / np.abs(disp).max())
-        xy = mesh.p.T + scale * disp
-        polys = xy[mesh.t.T]
-        second = _second_panel(dem, void)
-        fig, axs = plt.subplots(1, 2, figsize=(8, 5))
-        for ax, val, title, cmap, lim in (
-                (axs[0], dev, "deviatoric strain", "viridis", (None, None)),
-                (axs[1], *second)):
-            pc = PolyCollection(polys, array=val, cmap=cmap, edgecolors="k",
-                                linewidths=0.3)
-            pc.set_clim(*lim)
-            ax.add_collection(pc)
-            ax.autoscale()
-            ax.set_aspect("equal")
-            ax.set_title(title, fontsize=10)
-            fig.colorbar(pc, ax=ax, shrink=0.8)
-        fig.suptitle("final step, deformed mesh" if self.macro.finite else
-                     f"final step, displacements x {scale:.3g}", fontsize=10)
-        fig.tight_layout()
+        fig = fields_figure(
+            mesh.p.T + scale * disp, mesh.t.T,
+            [(dev, "deviatoric strain [-]", "viridis", (None, None)),
+             _second_panel(dem, void)],
+            "last step, on the deformed mesh" if self.macro.finite else
+            f"last step, displacements x {scale:.3g}")
         save_figure(fig, self.dir / "deviatoric_strain.png")
-        plt.close(fig)
 
     def _pressure_plot(self, plt, c):
         """``pore_pressure.png``: the pore pressure over time (maximum and mean over

@@ -570,18 +570,20 @@ def build_loads(problem, macro):
     from .coupling import Supports
     from .loads import CurrentBodyForce, CurrentTraction, FollowerPressure
 
-    dofs, values = [], []
+    conditions = []
     for c in problem["dirichlet"]:
         comp = COMPONENTS.index(c["component"])
         if c["point"] is None:
-            k = macro.dofs(c["boundary"], comp)
+            name, k = c["boundary"], macro.dofs(c["boundary"], comp)
         else:
+            name = "point (" + ", ".join(f"{x:g}" for x in c["point"]) + ")"
             k = macro.basis.nodal_dofs[comp, [vertex_at(macro.mesh, c["point"])]]
-        dofs.append(k)
-        values.append(np.full(k.size, c["value"]))
-    dofs = np.concatenate(dofs)
-    values = np.concatenate(values)
-    dofs, first = np.unique(dofs, return_index=True)  # a corner in two conditions
+        conditions.append((name, comp, k, c["value"]))
+    # a corner in two conditions: the first one's value, and its reaction
+    supports = Supports.from_conditions(
+        conditions, tuple(dict.fromkeys(c["boundary"] for c in problem["dirichlet"]
+                                        if c["boundary"] is not None)))
+    dofs = supports.dofs
     ties = []
     for i, c in enumerate(problem["platen"]):
         k = macro.dofs(c["boundary"], COMPONENTS.index(c["component"]))
@@ -590,10 +592,7 @@ def build_loads(problem, macro):
                              f"\"{c['boundary']}\" {c['component']} is also held by a "
                              f"[[dirichlet]] or another platen")
         ties.append(k)
-    supports = Supports(dofs, values[first],
-                        tuple(dict.fromkeys(c["boundary"] for c in problem["dirichlet"]
-                                            if c["boundary"] is not None)),
-                        ties=tuple(ties))
+    supports.ties = tuple(ties)
     f_const = np.zeros(macro.n_dofs)
     f_ramp = np.zeros(macro.n_dofs)
     loads = []

@@ -53,7 +53,8 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     :mod:`hmm.checkpoint`); ``stop_after`` ends the run after that load step (a
     checkpoint is written there), to split a long run into jobs. Returns (on rank 0)
     a dict summary: steps, iterations, cuts, wall time, final load factor,
-    reactions, output files.
+    reactions (per support, ``(d,)`` [N/m in 2D, N in 3D]) and the components each
+    support holds (``held``), output files.
     """
     _, comm = mpi_world()
     rank = 0 if comm is None else comm.Get_rank()
@@ -187,6 +188,7 @@ def _solve(problem, macro, farm, supports, loading, out, progress, say, t0,
             "load_factor": solver.t if porous is None else schedule.load_factor(solver.t),
             "dem_points": int(np.sum(m["ran_dem"] > 0)), "gauss_points": macro.n_gp,
             "reactions": {k: v.tolist() for k, v in solver.reactions().items()},
+            "held": solver.held_components(), "dim": macro.dim,
             "u": solver.u.copy(), "sigma": solver.sigma.copy(),
             "migrated": getattr(farm, "n_migrated", 0),
             "files": [str(out.dir / f) for f in ("fields.h5", "fields.xdmf",

@@ -205,7 +205,7 @@ def test_the_field_plot_shows_void_ratio_only_where_every_point_ran_its_rve():
 
     void = np.array([0.19, 0.25])
     values, title, _, _ = _second_panel(np.array([1.0, 1.0]), void)
-    assert title == "void ratio" and values is void
+    assert title == "void ratio [-]" and values is void
     # an elastic point has no packing: its share of DEM says where the RVEs ran
     for dem, v in ((np.array([1.0, 0.0]), void), (np.ones(2), np.array([0.2, np.nan]))):
         values, title, _, limits = _second_panel(dem, v)

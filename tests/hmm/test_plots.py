@@ -1,0 +1,99 @@
+"""The figures of a multiscale run (hmm.plots), read back through matplotlib's objects:
+labelled axes with units, labelled colour bars, the driven force in the driven
+direction, tick labels that do not run together."""
+
+import itertools
+
+import numpy as np
+import pytest
+
+from hmm.plots import fields_figure, length_unit, load_displacement_figure, scaled_unit
+
+
+def _curve(steps=9, push=-8e-4, force=1.4e4):
+    """A top pushed down by ``push`` carrying up to ``force`` in y; a bottom held."""
+    t = np.linspace(0.0, 1.0, steps)
+    u_top = np.zeros((steps, 2))
+    u_top[:, 1] = push * t
+    f_top = np.zeros((steps, 2))
+    f_top[:, 1] = -force * np.sqrt(t)
+    f_top[:, 0] = 123.0  # a component the plot must not show
+    return {"displacement/top": u_top, "force/top": f_top,
+            "displacement/bottom": np.zeros((steps, 2)),
+            "force/bottom": -f_top}
+
+
+def _render(fig):
+    """Lay the figure out as a PNG would be; its renderer."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)
+    canvas.draw()
+    return canvas.get_renderer()
+
+
+def _no_overlap(fig, ax):
+    renderer = _render(fig)
+    for axis in (ax.xaxis, ax.yaxis):
+        boxes = [t.get_window_extent(renderer) for t in axis.get_ticklabels()
+                 if t.get_visible() and t.get_text()]
+        assert len(boxes) >= 3
+        for a, b in itertools.pairwise(boxes):
+            assert not a.overlaps(b), [t.get_text() for t in axis.get_ticklabels()]
+
+
+def test_the_load_displacement_figure_shows_the_driven_force_in_mm_and_kn():
+    c = _curve()
+    fig = load_displacement_figure(c, [("top", 1), ("bottom", 1)], 2)
+    ax = fig.axes[0]
+    assert len(ax.lines) == 1  # the bottom did not move: no vertical line for it
+    x, y = ax.lines[0].get_data()
+    np.testing.assert_allclose(x, 1e3 * 8e-4 * np.linspace(0.0, 1.0, 9))  # [mm]
+    np.testing.assert_allclose(y, 1e-3 * -c["force/top"][:, 1])  # [kN/m], push positive
+    assert ax.get_xlabel() == "displacement of top in -y [mm]"
+    assert ax.get_ylabel() == "reaction on top in -y [kN/m]"
+    assert ax.get_legend() is None  # one curve: the labels say what it is
+    _no_overlap(fig, ax)
+
+
+def test_several_driven_boundaries_get_a_legend_and_3d_forces_are_in_newtons():
+    c = _curve(force=350.0)
+    c["displacement/right"] = -0.5 * c["displacement/top"][:, ::-1]
+    c["force/right"] = 0.5 * c["force/top"][:, ::-1]
+    fig = load_displacement_figure(c, [("top", 1), ("right", 0)], 3)
+    ax = fig.axes[0]
+    assert [line.get_label() for line in ax.lines] == ["top (-y)", "right (+x)"]
+    assert ax.get_legend() is not None
+    assert ax.get_xlabel().startswith("prescribed displacement [mm]")
+    assert ax.get_ylabel() == "reaction in the driven direction [N]"
+    _no_overlap(fig, ax)
+
+
+def test_the_field_figure_labels_axes_and_colour_bars():
+    x, y = np.meshgrid(np.linspace(0.0, 0.04, 3), np.linspace(0.0, 0.08, 3))
+    pts = np.c_[x.ravel(), y.ravel()]
+    cells = np.array([[0, 1, 4, 3], [1, 2, 5, 4], [3, 4, 7, 6], [4, 5, 8, 7]])
+    fig = fields_figure(pts, cells,
+                        [(np.full(4, 0.0113), "deviatoric strain [-]", "viridis",
+                          (None, None)),
+                         (np.array([0.19, 0.2, 0.21, 0.25]), "void ratio [-]", "magma",
+                          (None, None))],
+                        "last step")
+    _render(fig)
+    panels = [ax for ax in fig.axes if ax.get_label() != "<colorbar>"]
+    bars = [ax for ax in fig.axes if ax.get_label() == "<colorbar>"]
+    assert len(panels) == 2 and len(bars) == 2
+    for ax in panels:
+        assert (ax.get_xlabel(), ax.get_ylabel()) == ("x [mm]", "y [mm]")
+        assert ax.get_xlim()[1] == pytest.approx(40.0, rel=0.1)
+    assert [b.get_ylabel() for b in bars] == ["deviatoric strain [-]", "void ratio [-]"]
+    # a uniform field: limits around its value, no offset text such as "1e-16+1.13e-2"
+    assert bars[0].yaxis.get_offset_text().get_text() == ""
+    lo, hi = panels[0].collections[0].get_clim()
+    assert lo < 0.0113 < hi
+    assert fig._suptitle.get_text() == "last step"
+
+
+def test_units_follow_the_magnitude():
+    assert scaled_unit([2.5e6], "N")[1] == "MN" and scaled_unit([0.5], "N")[1] == "N"
+    assert length_unit([3e-7]) == (1e6, "µm") and length_unit([2.0]) == (1.0, "m")

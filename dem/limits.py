@@ -43,10 +43,10 @@ class Limit:
 
     >>> lim = Limit(100, "DEM_EXAMPLE_LIMIT", "particles")
     >>> lim.check(50, "count")
-    >>> lim.check(500, "count")
+    >>> lim.check(500, "count")  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    dem.limits.LimitError: count = 500 exceeds the limit of 100 particles; set the environment variable DEM_EXAMPLE_LIMIT to raise it
+    dem.limits.LimitError: count = 500 exceeds the limit of 100 particles; set the ...
     """
 
     default: int
@@ -89,13 +89,16 @@ def check_particle_scales(radius, density, dim):
     ``radius`` is a number or ``[min, max]``; both ends are checked.
 
     >>> check_particle_scales([1e-3, 2e-3], 2650.0, 3)
-    >>> check_particle_scales(1e100, 2650.0, 3)
+    >>> check_particle_scales(1e100, 2650.0, 3)  # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    dem.limits.LimitError: radius = 1e+100 m gives a particle volume of about 1e+301 m^3, outside 1e-150 to 1e+150 (products of such numbers overflow); use SI units of a real material
+    dem.limits.LimitError: radius = 1e+100 m gives a particle volume of about 1e+301 m^3, ...
     """
     lo, hi = MAGNITUDE
     radii = radius if isinstance(radius, (list, tuple)) else [radius]
+    if not (density > 0.0 and all(r > 0.0 for r in radii)):
+        raise LimitError(f"radius = {radius} m and density = {density} kg/m^3 must be "
+                         f"positive")
     log_rho = math.log10(density)
     for r in radii:
         log_r = math.log10(r)
@@ -110,7 +113,8 @@ def check_particle_scales(radius, density, dim):
                 ("moment of inertia", "kg m^2", log_inertia,
                  f"radius = {r:g} m and density = {density:g} kg/m^3")):
             if not lo <= e <= hi:
-                what = "is" if name == "radius" else f"gives a particle {name} of about"
+                verb = "gives" if name in ("radius", "volume") else "give"
+                what = "is" if name == "radius" else f"{verb} a particle {name} of about"
                 shown = "" if name == "radius" else f" 1e{e:+.0f} {unit},"
                 raise LimitError(f"{keys} {what}{shown} outside 1e{lo} to 1e+{hi} "
                                  f"(products of such numbers overflow); use SI units of a "

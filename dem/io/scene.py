@@ -315,7 +315,7 @@ def read_toml(path, what="scene"):
         data = None
     if data is None or _depth(data) > MAX_DEPTH:
         raise SceneError(f"{path}: arrays or tables are nested more than {MAX_DEPTH} "
-                         f"levels deep, the most a {what} file may nest")
+                         f"levels deep, the most an input file may nest")
     return data
 
 

@@ -55,7 +55,7 @@ def _parser():
                      help="validate and build the macro problem, then stop")
     run.add_argument("--restart", action="store_true",
                      help="continue from the output directory's checkpoint.h5")
-    run.add_argument("--stop-after", type=int, metavar="STEP",
+    run.add_argument("--stop-after", type=_positive_int, metavar="STEP",
                      help="stop after this load step, writing a checkpoint (to split "
                           "a long run into jobs)")
     run.set_defaults(func=_cmd_run)
@@ -71,6 +71,19 @@ def _parser():
     batch.add_argument("file", type=Path, help="the sweep file (TOML)")
     batch.set_defaults(func=_cmd_batch)
     return p
+
+
+def _positive_int(text):
+    """An argument that must be an integer >= 1 (argparse names the option)."""
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a load step >= 1, got {value}")
+    return value
 
 
 def main(argv=None):
@@ -170,7 +183,7 @@ def _solve(problem, args, prog):
         comm.Abort(EXIT_FAILED)
     if summary is None:  # a worker rank: rank 0 reports
         return EXIT_OK
-    its = summary["iterations"]
+    its = summary["iterations"] or [0]
     print(f"{summary['steps']} load steps, {sum(its)} Newton iterations "
           f"({min(its)}-{max(its)} per step), {summary['cuts']} step cuts, "
           f"{summary['trials']} farm trials; solved in {summary['solve_time']:.1f} s")

@@ -144,11 +144,22 @@ def _cmd_run(args):
         if args.dry_run:
             macro = build_macro(problem)
             print(f"{args.file}: valid; {macro.n_elems} elements, {macro.n_gp} Gauss "
-                  f"points, {problem['load']['steps']} load steps")
+                  f"points, {problem['load']['steps']} load steps{_memory(problem, macro)}")
             return EXIT_OK
     except SceneError as err:
         return _error("hmm run", err, EXIT_USAGE)
     return _solve(problem, args, "hmm run")
+
+
+def _memory(problem, macro):
+    """``; memory about ...`` of the RVEs of a problem whose packings are generated,
+    else empty."""
+    from dem.limits import memory_estimate
+
+    mc = problem["micro"]
+    if mc["model"] not in ("dem", "adaptive") or mc["packing"] is not None:
+        return ""
+    return f"; memory {memory_estimate(mc['count'] * macro.n_gp, macro.n_gp)}"
 
 
 def _solve(problem, args, prog):

@@ -888,3 +888,13 @@ def test_a_scene_names_the_stable_time_step_and_takes_allow_unstable_dt(tmp_path
         assert "stable time step" in text and "allow_unstable_dt" in text, page
     assert "a larger step than `sim.dt_crit` is refused" not in \
         (ROOT / "docs" / "quickstart.md").read_text()
+
+
+def test_dry_runs_print_a_memory_estimate(tmp_path):
+    """1 kB a particle (dem.limits.BYTES_PER_PARTICLE), 20 kB an RVE besides."""
+    name = write_case(tmp_path, "scene")  # 30 particles
+    code, out, err = run_cli("dem", ["run", name, "--dry-run"], tmp_path)
+    assert code == 0 and "memory about 30 kB for 30 particles" in out, err
+    name = write_case(tmp_path, "problem")  # 60 disks at each of 32 Gauss points
+    code, out, err = run_cli("hmm", ["run", name, "--dry-run"], tmp_path)
+    assert code == 0 and "memory about 2.6 MB for 1920 particles in 32 RVEs" in out, err

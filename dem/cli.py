@@ -103,8 +103,11 @@ def _cmd_run(args):
     try:
         scene = load_scene(args.scene)
         if args.steps is not None:
-            if args.steps < 0:
-                raise SceneError(f"--steps must be >= 0, got {args.steps}")
+            from .limits import INT64_MAX
+
+            if not 0 <= args.steps <= INT64_MAX:
+                raise SceneError(f"--steps must be in [0, {INT64_MAX}] (a 64-bit "
+                                 f"integer), got {args.steps}")
             scene["simulation"]["steps"] = args.steps
         sim, output = build_simulation(scene)
     except SceneError as exc:

@@ -898,3 +898,9 @@ def test_dry_runs_print_a_memory_estimate(tmp_path):
     name = write_case(tmp_path, "problem")  # 60 disks at each of 32 Gauss points
     code, out, err = run_cli("hmm", ["run", name, "--dry-run"], tmp_path)
     assert code == 0 and "memory about 2.6 MB for 1920 particles in 32 RVEs" in out, err
+
+
+def test_steps_on_the_command_line_are_a_64_bit_integer(tmp_path):
+    name = write_case(tmp_path, "scene")
+    refused("dem", ["run", name, "--dry-run", "--steps", str(2**63)], tmp_path,
+            "--steps must be in [0, 9223372036854775807]")

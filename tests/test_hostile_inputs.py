@@ -904,3 +904,17 @@ def test_steps_on_the_command_line_are_a_64_bit_integer(tmp_path):
     name = write_case(tmp_path, "scene")
     refused("dem", ["run", name, "--dry-run", "--steps", str(2**63)], tmp_path,
             "--steps must be in [0, 9223372036854775807]")
+
+
+def test_a_particle_file_is_counted_against_the_limit_before_it_is_parsed(tmp_path,
+                                                                           monkeypatch):
+    (tmp_path / "packing.txt").write_text("# x y z r\n" + "".join(
+        f"{0.02 * i} 0.04 0.04 0.004\n" for i in range(1, 4)))
+    name = write_case(tmp_path, "scene", {"particles": {
+        "generator": "file", "file": "packing.txt", "density": 2500.0}})
+    monkeypatch.setenv("DEM_MAX_PARTICLES", "2")
+    refused("dem", ["run", name, "--dry-run"], tmp_path,
+            "packing.txt holds more than 2 particles", "DEM_MAX_PARTICLES")
+    monkeypatch.setenv("DEM_MAX_PARTICLES", "3")
+    code, out, err = run_cli("dem", ["run", name, "--dry-run"], tmp_path)
+    assert code == 0 and "3 spheres" in out, err

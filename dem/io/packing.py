@@ -6,7 +6,7 @@ message. :mod:`dem.io.scene` turns these messages into scene-file errors.
 
 import numpy as np
 
-from ..limits import PARTICLES
+from ..limits import PARTICLES, LimitError
 from .text import fmt as _fmt
 from .text import reason as _reason
 from .text import show as _show
@@ -143,12 +143,16 @@ def random_packing(lo, hi, radius, rng, attempts_per_particle=200):
 def read_packing(path, dim):
     """Positions (n, dim) and radii (n,) [m] from rows ``x y [z] r`` of a text file.
 
-    Raises ValueError (message starting with ``file:``) for an unreadable file, wrong
+    Raises ValueError (message starting with ``file:``) for an unreadable file, more
+    rows than :data:`dem.limits.PARTICLES` (counted before the file is parsed), wrong
     columns, non-finite values or overlapping spheres (naming the first pair).
     """
     try:
+        _check_rows(path)
         with open(path, encoding="utf-8") as f:
             rows = np.loadtxt(f, ndmin=2, comments="#")
+    except LimitError:
+        raise
     except OSError as exc:
         raise ValueError(f"file: cannot read {path}: {_reason(exc)}") from exc
     except ValueError as exc:
@@ -172,6 +176,22 @@ def read_packing(path, dim):
         raise ValueError(f"file: {path}: particles {i} and {j} (0-based rows) overlap by "
                  f"{_fmt(ov)} m")
     return pos, radius
+
+
+def _check_rows(path):
+    """Refuse (LimitError) a particle file of more rows than the particle limit,
+    streaming it line by line (nothing of its size is held)."""
+    limit = PARTICLES.value()
+    n = 0
+    with open(path, "rb") as f:
+        for line in f:
+            text = line.lstrip()
+            if text and not text.startswith(b"#"):
+                n += 1
+                if n > limit:
+                    raise LimitError(f"file: {path} holds more than {limit} particles, "
+                                     f"the limit; set the environment variable "
+                                     f"{PARTICLES.env} to raise it")
 
 
 def first_overlap(pos, radius):

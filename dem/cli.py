@@ -126,8 +126,11 @@ def _cmd_run(args):
     try:
         scene = load_scene(args.scene)
         if args.steps is not None:
-            if args.steps < 0:
-                raise SceneError(f"--steps must be >= 0, got {args.steps}")
+            from .limits import INT64_MAX
+
+            if not 0 <= args.steps <= INT64_MAX:
+                raise SceneError(f"--steps must be in [0, {INT64_MAX}] (a 64-bit "
+                                 f"integer), got {args.steps}")
             scene["simulation"]["steps"] = args.steps
         sim, output = build_simulation(scene)
     except SceneError as exc:
@@ -135,8 +138,13 @@ def _cmd_run(args):
     out_file = output.file if args.output is None else args.output / output.file.name
     n_steps = scene["simulation"]["steps"]
     if args.dry_run:
+        from .limits import memory_estimate
+        from .shapes import Shape
+
+        n_particles = sim.bodies.n - len(sim.bodies.ids(Shape.PLANE))
         print(f"{args.scene}: valid; {_bodies_line(sim)}; {n_steps} steps of "
-              f"dt = {sim.dt:.4g} s; output {out_file}")
+              f"dt = {sim.dt:.4g} s; output {out_file}; memory "
+              f"{memory_estimate(n_particles)}")
         return EXIT_OK
     try:
         writer = _open_writer(out_file, output, args.overwrite)

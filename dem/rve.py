@@ -48,6 +48,7 @@ from .boundary import PeriodicCell
 from .contact.laws import Law, law_from_spec
 from .rve_measure import measure_periodic
 from .contact.model import ContactModel
+from .limits import PARTICLES, check_particle_scales
 from .simulation import (Simulation, SimulationError, critical_time_step,
                          damped_stability)
 from .shapes import Shape
@@ -117,6 +118,7 @@ def particle_radii(n, radius, fractions=None, seed=0):
     n = int(n)
     if n < 1:
         raise ValueError(f"the number of particles must be >= 1, got {n}")
+    PARTICLES.check(n, "the number of particles")
     rng = np.random.default_rng(seed)
     r = np.atleast_1d(np.asarray(radius, dtype=np.float64))
     if not (np.all(np.isfinite(r)) and np.all(r > 0.0)):
@@ -802,6 +804,7 @@ def generate(dim, n, radius, law, p0, density=2650.0, fractions=None, seed=0,
     RVE
     """
     radii = particle_radii(n, radius, fractions, seed)
+    check_particle_scales([float(radii.min()), float(radii.max())], density, dim)
     kn = getattr(law, "kn", None)
     if kn is not None:  # contact stiffness against the confinement's force per contact
         kappa = kn / (p0 * float(np.mean(radii)) ** (dim - 2))

@@ -214,7 +214,7 @@ class Simulation:
             raise ValueError(f"dt must be positive and finite, got {dt}")
         if dt > self.dt_stable and not allow_unstable_dt:
             raise ValueError(
-                f"dt = {dt:.4g} s exceeds the critical time step of a packing, "
+                f"dt = {dt:.4g} s exceeds the stable time step dt_stable = "
                 f"{self.dt_stable:.4g} s: {STABLE_FACTOR:g} x a close packing's limit, "
                 f"{factor:.3g} x the two-body limit {self.dt_crit:.4g} s (lightest body "
                 f"{m_min:.4g} kg, stiffest contact {k_max:.4g} N/m, contact damping ratio "

@@ -27,12 +27,14 @@ import io
 import itertools
 import json
 import logging
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from dem.io.scene import Key, SceneError, Section, read_toml, validate
+from dem.limits import Limit, LimitError
 
 from .experiment import RVE_SCHEMA, SUMMARY_UNITS, UNITS, validate_config
 
@@ -47,6 +49,8 @@ OUTPUTS = ("batch.h5", "summary.csv", "summary.png")
 RUN_METADATA = ("wall_time", "rank")
 #: the sections of [base] a sweep may vary
 SWEPT_SECTIONS = ("packing", "contact", "test")
+#: experiments of one sweep (a grid's product is checked before it is built)
+EXPERIMENTS = Limit(10**5, "HMM_MAX_EXPERIMENTS", "experiments")
 
 
 class _Text:
@@ -204,6 +208,12 @@ def _combinations(sweep, source):
                 raise SceneError(f"{where} grid: '{path}' must be a non-empty array of "
                                  f"values")
         paths = list(grid)
+        try:
+            EXPERIMENTS.check(math.prod(len(v) for v in grid.values()),
+                              "grid experiments = " + " x ".join(
+                                  str(len(v)) for v in grid.values()))
+        except LimitError as exc:
+            raise SceneError(f"{where} {exc}") from None
         return [dict(zip(paths, combo, strict=True))
                 for combo in itertools.product(*grid.values())]
     entries = sweep["list"]
@@ -211,6 +221,10 @@ def _combinations(sweep, source):
             isinstance(e, dict) for e in entries):
         raise SceneError(f"{where} list must be a non-empty array of tables "
                          f"([[sweep.list]])")
+    try:
+        EXPERIMENTS.check(len(entries), "list experiments")
+    except LimitError as exc:
+        raise SceneError(f"{where} {exc}") from None
     return [_paths(e, f"{where} list #{i + 1}") for i, e in enumerate(entries)]
 
 

@@ -57,7 +57,7 @@ def _parser():
                      help="validate and build the macro problem, then stop")
     run.add_argument("--restart", action="store_true",
                      help="continue from the output directory's checkpoint.h5")
-    run.add_argument("--stop-after", type=int, metavar="STEP",
+    run.add_argument("--stop-after", type=_positive_int, metavar="STEP",
                      help="stop after this load step, writing a checkpoint (to split "
                           "a long run into jobs)")
     run.set_defaults(func=_cmd_run)
@@ -73,6 +73,19 @@ def _parser():
     batch.add_argument("file", type=Path, help="the sweep file (TOML)")
     batch.set_defaults(func=_cmd_batch)
     return p
+
+
+def _positive_int(text):
+    """An argument that must be an integer >= 1 (argparse names the option)."""
+    import argparse
+
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be an integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a load step >= 1, got {value}")
+    return value
 
 
 def main(argv=None):
@@ -133,11 +146,22 @@ def _cmd_run(args):
         if args.dry_run:
             macro = build_macro(problem)
             print(f"{args.file}: valid; {macro.n_elems} elements, {macro.n_gp} Gauss "
-                  f"points, {problem['load']['steps']} load steps")
+                  f"points, {problem['load']['steps']} load steps{_memory(problem, macro)}")
             return EXIT_OK
     except SceneError as err:
         return _error("hmm run", err, EXIT_USAGE)
     return _solve(problem, args, "hmm run")
+
+
+def _memory(problem, macro):
+    """``; memory about ...`` of the RVEs of a problem whose packings are generated,
+    else empty."""
+    from dem.limits import memory_estimate
+
+    mc = problem["micro"]
+    if mc["model"] not in ("dem", "adaptive") or mc["packing"] is not None:
+        return ""
+    return f"; memory {memory_estimate(mc['count'] * macro.n_gp, macro.n_gp)}"
 
 
 def _solve(problem, args, prog):
@@ -172,7 +196,7 @@ def _solve(problem, args, prog):
         comm.Abort(EXIT_FAILED)
     if summary is None:  # a worker rank: rank 0 reports
         return EXIT_OK
-    its = summary["iterations"]
+    its = summary["iterations"] or [0]
     print(f"{summary['steps']} load steps, {sum(its)} Newton iterations "
           f"({min(its)}-{max(its)} per step), {summary['cuts']} step cuts, "
           f"{summary['trials']} farm trials; solved in {summary['solve_time']:.1f} s")

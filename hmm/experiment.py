@@ -37,12 +37,16 @@ import numpy as np
 from dem.io.scene import REQUIRED, Key, Range, SceneError, Section, read_toml, validate
 from dem.io.scene import SCHEMA as SCENE_SCHEMA
 from dem.io.text import fmt as _fmt
+from dem.limits import PARTICLES, Limit, LimitError, check_particle_scales
 
 log = logging.getLogger(__name__)
 
 __all__ = ["RVE_SCHEMA", "SUMMARY_UNITS", "UNITS", "CompressionResult", "compress",
            "dilatancy_angle", "friction_angle", "load_config", "make_packing",
            "output_paths", "run_experiment", "stress_invariants", "validate_config"]
+
+#: recorded increments of one test (each a relaxation of the packing)
+INCREMENTS = Limit(10**6, "HMM_MAX_INCREMENTS", "increments")
 
 #: the tests of ``[test] kind``
 KINDS = ("drained", "undrained", "oedometric", "isotropic", "simple_shear", "cyclic")
@@ -189,27 +193,60 @@ def validate_config(data, source="<rve>", base_dir="."):
     cfg, ctx = validate(data, schema, source, base_dir, dim=2)
     p, t = cfg["packing"], cfg["test"]
     if from_file:
+        if Path(p["file"]).is_dir():
+            ctx.fail(f"file {p['file']} is a directory, not a packing file", "[packing]")
         if not Path(p["file"]).is_file():
             ctx.fail(f"file {p['file']} does not exist", "[packing]")
         for key in _GENERATION_KEYS:
             p[key] = None
     else:
-        for key, kind in (("count", "integer"), ("radius", "number or [min, max], m"),
-                          ("p0", "number, Pa")):
-            if p[key] is None:
-                ctx.fail(f"missing required key '{key}' ({kind}; or give file)",
-                         "[packing]")
-        if t["confining"] is None:
-            t["confining"] = p["p0"]
-        check_shape(ctx, p, p["dim"])
+        _check_generated(ctx, p, t)
     _check_kind(ctx, data, t)
     if t["increment"] > t["axial_strain"]:
         ctx.fail(f"increment = {_fmt(t['increment'])} must not exceed axial_strain = "
                  f"{_fmt(t['axial_strain'])}", "[test]")
+    try:
+        INCREMENTS.check(n_increments(t), _increments_asked(t))
+    except LimitError as exc:
+        ctx.fail(str(exc), "[test]")
     if cfg["output"]["dir"] is None:
         stem = Path(source).stem.strip("<>") or "rve"
         cfg["output"]["dir"] = str(Path("output") / stem)
     return cfg
+
+
+def _check_generated(ctx, p, t):
+    """A packing to generate: its required keys, shape, size and particle scales."""
+    for key, kind in (("count", "integer"), ("radius", "number or [min, max], m"),
+                      ("p0", "number, Pa")):
+        if p[key] is None:
+            ctx.fail(f"missing required key '{key}' ({kind}; or give file)", "[packing]")
+    if t["confining"] is None:
+        t["confining"] = p["p0"]
+    check_shape(ctx, p, p["dim"])
+    try:
+        PARTICLES.check(p["count"], "count")
+        check_particle_scales(p["radius"], p["density"], p["dim"])
+    except LimitError as exc:
+        ctx.fail(str(exc), "[packing]")
+
+
+def n_increments(t):
+    """The number of increments a validated ``[test]`` records (computed without
+    building them: a tiny ``increment`` must not allocate)."""
+    if t["kind"] == "isotropic":
+        return 2 * t["steps"]
+    ratio = t["axial_strain"] / t["increment"]
+    n = math.ceil(ratio - 1e-9) if ratio < 1e15 else ratio  # (may be inf)
+    return 4 * n * t["cycles"] if t["kind"] == "cyclic" else n
+
+
+def _increments_asked(t):
+    """What sets the number of increments, in words, for a refusal."""
+    if t["kind"] == "isotropic":
+        return f"2 x steps = 2 x {t['steps']}"
+    ratio = f"axial_strain / increment = {_fmt(t['axial_strain'])} / {_fmt(t['increment'])}"
+    return f"4 x cycles x {ratio}" if t["kind"] == "cyclic" else ratio
 
 
 def _check_kind(ctx, data, t):

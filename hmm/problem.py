@@ -103,6 +103,7 @@ import numpy as np
 
 from dem.io.scene import REQUIRED, Key, Range, SceneError, Section, read_toml, validate
 from dem.io.scene import schema_markdown as _markdown
+from dem.limits import PARTICLES, Limit, LimitError, check_particle_scales
 
 POSITIVE = Range(0.0, lo_closed=False)
 NONNEGATIVE = Range(0.0)
@@ -112,8 +113,10 @@ ELEMENTS_2D = ("quad1", "quad2", "quad8", "tri1", "tri2")
 ELEMENTS_3D = ("hex1", "hex20", "hex27", "tet1", "tet10")
 #: elements whose Gauss rule [mesh] integration chooses (hmm.macro.INTEGRATION)
 QUADRATURE_CHOICE = ("quad2", "quad8", "hex20", "hex27")
-#: most elements of a structured mesh ([mesh] size and cells); each has Gauss points
-MAX_ELEMENTS = 10**6
+#: most elements of a mesh ([mesh] size and cells, or a file); each has Gauss points
+MESH_ELEMENTS = Limit(10**6, "HMM_MAX_ELEMENTS", "elements")
+#: most load steps of a run (the schedule is an array of that length)
+LOAD_STEPS = Limit(10**6, "HMM_MAX_LOAD_STEPS", "load steps")
 #: micro models of [micro] model; the analytic ones take young and poisson
 MICRO_MODELS = ("dem", "adaptive", "linear_elastic", "hyperbolic", "hypoelastic",
                 "neo_hookean")
@@ -400,9 +403,11 @@ def validate_problem(data, source="<problem>", base_dir="."):
             ctx.fail("needs size and cells, or a mesh file", "[mesh]")
         if any(c != int(c) for c in m["cells"]):
             ctx.fail(f"cells must be integers, got {m['cells']}", "[mesh]")
-        if math.prod(int(c) for c in m["cells"]) > MAX_ELEMENTS:
-            ctx.fail(f"cells = {m['cells']} makes more than the {MAX_ELEMENTS} elements "
-                     f"a structured mesh may have", "[mesh]")
+        try:
+            MESH_ELEMENTS.check(math.prod(int(c) for c in m["cells"]),
+                           f"cells = {[int(c) for c in m['cells']]}: elements")
+        except LimitError as exc:
+            ctx.fail(str(exc), "[mesh]")
     elif m["size"] is not None or m["cells"] is not None:
         ctx.fail("takes a mesh file or size and cells, not both", "[mesh]")
     if (m["element"] in ELEMENTS_2D) != (m["dim"] == 2):
@@ -434,16 +439,38 @@ def validate_problem(data, source="<problem>", base_dir="."):
                  f"\"{out['micro']['model']}\" is a small-strain law (use "
                  f"\"hypoelastic\" or \"neo_hookean\", or kinematics = \"small\")",
                  "[solver]")
+    try:
+        LOAD_STEPS.check(out["load"]["steps"], "steps")
+    except LimitError as exc:
+        ctx.fail(str(exc), "[load]")
     _check_fluid(ctx, out, data)
     if out["micro"]["model"] in ("dem", "adaptive"):
         from .experiment import check_shape
         from .micro import PERTURBATION_NEEDS_RELAX
 
         check_shape(ctx, out["micro"], m["dim"], "[micro]")
+        _check_micro_sizes(ctx, out, m["dim"])
         if out["micro"]["tangent"] == "perturbation" and not out["micro"]["relax"]:
             ctx.fail(f"tangent = \"perturbation\" with relax = false: "
                      f"{PERTURBATION_NEEDS_RELAX}", "[micro]")
     return out
+
+
+def _check_micro_sizes(ctx, out, dim):
+    """Generated packings: their particle count and scales; packing files: not a
+    directory."""
+    mc = out["micro"]
+    if mc["packing"] is None:
+        try:
+            PARTICLES.check(mc["count"], "count")
+            check_particle_scales(mc["radius"], mc["density"], dim)
+        except LimitError as exc:
+            ctx.fail(str(exc), "[micro]")
+    spots = [(f"[[imperfection]] #{i + 1}", s) for i, s in enumerate(out["imperfection"])]
+    for where, section in [("[micro]", mc), *spots]:
+        if section["packing"] is not None and Path(section["packing"]).is_dir():
+            ctx.fail(f"packing {section['packing']} is a directory, not a packing file",
+                     where)
 
 
 def _check_fluid(ctx, out, data):
@@ -496,8 +523,6 @@ def _check_fluid(ctx, out, data):
 
 def build_macro(problem):
     """The :class:`~hmm.macro.Macro` of a validated problem; boundary names checked."""
-    from skfem import Mesh
-
     from .macro import ELEMENTS, Macro, structured_mesh
 
     src = problem["source"]
@@ -505,17 +530,18 @@ def build_macro(problem):
     if m["file"] is None:
         mesh = structured_mesh(m["element"], m["size"], [int(c) for c in m["cells"]])
     else:
-        try:
-            mesh = Mesh.load(m["file"])
-        except Exception as err:  # noqa: BLE001 - meshio raises many kinds
-            raise SceneError(f"{src}: [mesh] cannot read mesh file {m['file']}: "
-                             f"{type(err).__name__}: {err}") from None
+        mesh = read_mesh(m["file"], f"{src}: [mesh]")
         if not isinstance(mesh, ELEMENTS[m["element"]][0]):
             raise SceneError(f"{src}: [mesh] file holds a {type(mesh).__name__}, "
                              f"element \"{m['element']}\" needs a "
                              f"{ELEMENTS[m['element']][0].__name__}")
     if mesh.t.shape[1] == 0:
         raise SceneError(f"{src}: [mesh] has no elements")
+    try:
+        if m["file"] is not None:
+            MESH_ELEMENTS.check(mesh.t.shape[1], f"the elements of {m['file']}")
+    except LimitError as exc:
+        raise SceneError(f"{src}: [mesh] {exc}") from None
     mesh = _cut_boundaries(problem, mesh)
     known = set(mesh.boundaries or {})
     for kind in ("dirichlet", "pressure", "traction", "drainage", "platen"):
@@ -529,7 +555,41 @@ def build_macro(problem):
                 raise SceneError(f"{src}: [[{kind}]] #{i + 1} boundary "
                                  f"\"{c['boundary']}\" is not a boundary of the mesh "
                                  f"(known: {', '.join(sorted(known)) or 'none'})")
-    return Macro(mesh, m["element"], problem["solver"]["kinematics"], m["integration"])
+    macro = Macro(mesh, m["element"], problem["solver"]["kinematics"], m["integration"])
+    mc = problem["micro"]
+    if mc["model"] in ("dem", "adaptive") and mc["packing"] is None:
+        try:  # every Gauss point holds a copy of its packing
+            PARTICLES.check(mc["count"] * macro.n_gp, f"count x Gauss points = "
+                            f"{mc['count']} x {macro.n_gp}")
+        except LimitError as exc:
+            raise SceneError(f"{src}: [micro] {exc}") from None
+    return macro
+
+
+def read_mesh(path, where):
+    """A scikit-fem mesh from a file meshio reads; a :class:`SceneError` starting
+    with ``where`` for anything else.
+
+    meshio prints to stdout and calls ``sys.exit`` on a file it cannot parse: its
+    output is captured and turned into the one-line error.
+    """
+    import contextlib
+    import io
+
+    from skfem import Mesh
+
+    if Path(path).is_dir():
+        raise SceneError(f"{where} mesh file {path} is a directory")
+    said = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
+            return Mesh.load(path)
+    except SystemExit:
+        reason = " ".join(said.getvalue().split()).removeprefix("Error: ") or \
+            "meshio gave up on it"
+    except Exception as err:  # noqa: BLE001 - meshio raises many kinds
+        reason = f"{type(err).__name__}: {err}"
+    raise SceneError(f"{where} cannot read mesh file {path}: {reason}")
 
 
 def vertex_at(mesh, point):

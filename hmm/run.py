@@ -73,10 +73,12 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     ck = None
     out, refused = None, None
     try:  # every rank opens the checkpoint: each reads its own points from it
+        _refuse_directories(directory)
         if restart:
             ck = Checkpoint(Path(directory) / "checkpoint.h5", problem)
             ck.check(macro, Output.curve_names(supports.boundaries, porous is not None,
                                                platens), porous, schedule)
+            _check_stop(ck, stop_after)
         if rank == 0:
             out = Output(directory, macro, supports.boundaries, problem["output"]["every"],
                          overwrite=overwrite, driven=driven,
@@ -119,6 +121,28 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
         if ck is not None:
             ck.close()
     return summary
+
+
+#: the files a run writes into its directory
+OUTPUT_FILES = ("fields.h5", "fields.xdmf", "checkpoint.h5", "load_displacement.png",
+                "deviatoric_strain.png", "pore_pressure.png")
+
+
+def _check_stop(ck, stop_after):
+    """ValueError if a restart from ``ck`` would stop before it ran a step."""
+    if stop_after is not None and stop_after <= ck.step:
+        raise ValueError(f"--stop-after {stop_after}: the checkpoint {ck.path} is at "
+                         f"load step {ck.step} already; give a later step")
+
+
+def _refuse_directories(directory):
+    """FileExistsError if one of :data:`OUTPUT_FILES` is a directory (``--overwrite``
+    cannot replace it)."""
+    for name in OUTPUT_FILES:
+        path = Path(directory) / name
+        if path.is_dir():
+            raise FileExistsError(f"{path} is a directory, not an output file: remove "
+                                  f"it or choose another directory with --output")
 
 
 def _solve(problem, macro, farm, supports, loading, out, progress, say, t0,

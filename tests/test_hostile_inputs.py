@@ -288,13 +288,13 @@ def test_mutated_input_files_end_in_a_run_or_one_line(kind):
 
 
 @pytest.mark.parametrize("kind, edits, message", [
-    ("scene", {"particles/count": 10**12}, "exceeds the 10000000 particles"),
+    ("scene", {"particles/count": 10**12}, "exceeds the limit of 10000000 particles"),
     ("scene", {"particles/count": 100000}, "random placement stops"),
     ("scene", {"particles/generator": "lattice", "particles/count": 10**12},
-     "exceeds the 10000000 particles"),
+     "exceeds the limit of 10000000 particles"),
     ("scene", {"particles/generator": "lattice", "particles/hi": [1e300] * 3},
      "overlaps the wall"),
-    ("problem", {"mesh/cells": [10**9, 10**9]}, "more than the 1000000 elements"),
+    ("problem", {"mesh/cells": [10**9, 10**9]}, "exceeds the limit of 1000000 elements"),
 ])
 def test_huge_sizes_are_refused_before_allocation(kind, edits, message):
     data = copy.deepcopy(BASES[kind])
@@ -702,3 +702,219 @@ def test_input_files_cannot_run_code():
             for i, line in enumerate(p.read_text().splitlines(), 1)
             if UNSAFE.search(line)]
     assert not hits, "\n".join(hits)
+
+
+# --------------------------------------------------------------------------- edges
+# Issue 32: sizes and derived values, parsing limits, tracebacks, time-step wording.
+# Every case must end in exit status 2 and one line naming the key or the file.
+def refused(prog, argv, cwd, *needles, patch=None, label=None):
+    """Run ``prog argv`` from ``cwd`` (``patch``: a function replaced by a stop, where
+    the real work would start) and assert a one-line refusal holding ``needles``,
+    starting ``label: error:`` (default ``dem`` or ``hmm COMMAND``); returns stdout."""
+    with mock.patch(patch, _stop) if patch else contextlib.nullcontext():
+        code, out, err = run_cli(prog, argv, cwd)
+    label = label or (prog if prog == "dem" else f"hmm {argv[0]}")
+    assert code == 2, f"exit {code}:\n{err}"
+    assert_clean_outcome(code, err, label, " ".join(map(str, argv)))
+    for needle in needles:
+        assert needle in err, f"{needle!r} not in {err!r}"
+    return out
+
+
+def write_case(tmp, kind, edits=(), name=None):
+    """The base file of ``kind`` with ``edits`` ({"section/key": value}, nested with
+    "/"; None drops the key) written into ``tmp``; its name."""
+    data = copy.deepcopy(BASES[kind])
+    for path, value in dict(edits).items():
+        *parents, key = path.split("/")
+        table = data
+        for p in parents:
+            table = table.setdefault(p, {})
+        if value is None:
+            table.pop(key, None)
+        else:
+            table[key] = value
+    name = name or f"{kind}.toml"
+    (Path(tmp) / name).write_text(to_toml(data))
+    return name
+
+
+#: the command of each file kind, stopped where its run would start
+STOPPED = {"scene": ("dem", ["run"], ["--dry-run"], None),
+           "problem": ("hmm", ["run"], ["--dry-run"], None),
+           "rve": ("hmm", ["rve"], [], "hmm.experiment.make_packing"),
+           "sweep": ("hmm", ["batch"], [], "hmm.queue.run_batch")}
+
+
+def refused_file(tmp, kind, edits, *needles):
+    name = write_case(tmp, kind, edits)
+    prog, command, dry, patch = STOPPED[kind]
+    with bounded_memory():
+        return refused(prog, [*command, name, "-o", "out", *dry], tmp, name, *needles,
+                       patch=patch)
+
+
+@pytest.mark.parametrize("kind, edits, needles", [
+    ("rve", {"packing/count": 10**9}, ["[packing] count = 1000000000", "DEM_MAX_PARTICLES"]),
+    ("problem", {"micro/count": 10**9}, ["[micro] count = 1000000000",
+                                         "DEM_MAX_PARTICLES"]),
+    ("problem", {"micro/count": 400_000}, ["[micro] count x Gauss points = 400000 x 32",
+                                           "DEM_MAX_PARTICLES"]),
+    ("sweep", {"base/packing/count": 10**9}, ["[packing] count = 1000000000",
+                                              "DEM_MAX_PARTICLES"]),
+    ("problem", {"load/steps": 10**15}, ["[load] steps", "HMM_MAX_LOAD_STEPS"]),
+    ("rve", {"test/increment": 1e-300}, ["[test] axial_strain / increment",
+                                         "HMM_MAX_INCREMENTS"]),
+    ("scene", {"simulation/steps": 2**63}, ["[simulation] steps", "64-bit"]),
+    ("rve", {"packing/seed": 10**20}, ["[packing] seed", "64-bit"]),
+])
+def test_huge_sizes_name_the_limit_and_how_to_raise_it(tmp_path, kind, edits, needles):
+    refused_file(tmp_path, kind, edits, *needles)
+
+
+@pytest.mark.parametrize("kind, edits, needles", [
+    ("scene", {"particles/radius": 1e300}, ["[particles] radius = 1e+300 m"]),
+    ("scene", {"particles/density": 1e-300}, ["[particles]", "density = 1e-300",
+                                              "particle mass"]),
+    ("rve", {"packing/radius": 1e300}, ["[packing] radius = 1e+300 m"]),
+    ("rve", {"packing/density": 1e-300}, ["[packing]", "density = 1e-300"]),
+    ("problem", {"micro/radius": [1e-3, 1e300]}, ["[micro] radius = 1e+300 m"]),
+    ("sweep", {"base/packing/radius": 1e300}, ["[packing] radius = 1e+300 m"]),
+])
+def test_values_that_overflow_derived_quantities_are_refused(tmp_path, kind, edits,
+                                                             needles):
+    refused_file(tmp_path, kind, edits, *needles)
+
+
+def test_a_limit_is_raised_or_lowered_by_its_environment_variable(tmp_path, monkeypatch):
+    name = write_case(tmp_path, "scene")  # 30 particles
+    monkeypatch.setenv("DEM_MAX_PARTICLES", "10")
+    refused("dem", ["run", name, "--dry-run"], tmp_path,
+            "count = 30 exceeds the limit of 10 particles", "DEM_MAX_PARTICLES")
+    monkeypatch.setenv("HMM_MAX_EXPERIMENTS", "4")  # the sweep has 8
+    sweep = write_case(tmp_path, "sweep")
+    refused("hmm", ["batch", sweep], tmp_path, "[sweep] grid", "HMM_MAX_EXPERIMENTS",
+            patch="hmm.queue.run_batch")
+    monkeypatch.setenv("DEM_MAX_PARTICLES", "100")
+    code, out, err = run_cli("dem", ["run", name, "--dry-run"], tmp_path)
+    assert code == 0 and "valid" in out, err
+
+
+def test_the_python_api_refuses_huge_packings_before_allocation(monkeypatch):
+    from dem.limits import LimitError
+    from dem.rve import particle_radii
+
+    monkeypatch.setenv("DEM_MAX_PARTICLES", "1000")
+    with pytest.raises(LimitError, match="DEM_MAX_PARTICLES"):
+        particle_radii(1001, [1e-3, 2e-3])
+    assert particle_radii(1000, [1e-3, 2e-3]).shape == (1000,)
+
+
+@pytest.mark.parametrize("kind", sorted(STOPPED))
+@pytest.mark.parametrize("depth", [40, 5000])
+def test_deeply_nested_files_are_refused_in_one_line(tmp_path, kind, depth):
+    name = write_case(tmp_path, kind)
+    path = tmp_path / name
+    path.write_text(path.read_text() + "deep = " + "[" * depth + "]" * depth + "\n")
+    prog, command, dry, patch = STOPPED[kind]
+    refused(prog, [*command, name, *dry], tmp_path, name, "nested more than 32 levels",
+            patch=patch)
+
+
+def test_an_oversized_file_is_refused_in_one_line(tmp_path):
+    name = write_case(tmp_path, "scene")
+    with open(tmp_path / name, "a") as f:
+        f.write(("# padding " + "x" * 1000 + "\n") * (17 * 1024))
+    refused("dem", ["run", name, "--dry-run"], tmp_path, name, "larger than 16 MiB")
+
+
+@pytest.mark.parametrize("text", [b"junk text\n", bytes(range(256)) * 4])
+def test_a_garbage_mesh_file_is_one_line_not_meshio_exit(tmp_path, text):
+    (tmp_path / "mesh.msh").write_bytes(text)
+    problem = copy.deepcopy(ELASTIC)
+    problem["mesh"] = {"file": "mesh.msh"}
+    (tmp_path / "p.toml").write_text(to_toml(problem))
+    out = refused("hmm", ["run", "p.toml", "--dry-run"], tmp_path,
+                  "[mesh] cannot read mesh file", "mesh.msh")
+    assert out == ""  # meshio's own print is captured
+
+
+@pytest.mark.parametrize("step", ["0", "-1"])
+def test_stop_after_must_be_a_load_step(tmp_path, step):
+    (tmp_path / "p.toml").write_text(to_toml(ELASTIC))
+    refused("hmm", ["run", "p.toml", "-o", "out", f"--stop-after={step}"], tmp_path,
+            "argument --stop-after: must be a load step >= 1", label="hmm")
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_restart_must_stop_after_its_checkpoint(stopped_run, tmp_path):
+    shutil.copytree(stopped_run, tmp_path, dirs_exist_ok=True)
+    before = listing(tmp_path)
+    refused("hmm", ["run", "problem.toml", "-o", "out", "--restart", "--stop-after", "1",
+                    "--no-progress"], tmp_path, "--stop-after 1", "checkpoint.h5")
+    assert listing(tmp_path) == before
+
+
+def test_overwrite_cannot_replace_a_directory_named_like_an_output(tmp_path):
+    (tmp_path / "p.toml").write_text(to_toml(ELASTIC))
+    (tmp_path / "out" / "fields.h5").mkdir(parents=True)
+    refused("hmm", ["run", "p.toml", "-o", "out", "--overwrite", "--no-progress"],
+            tmp_path, "fields.h5 is a directory")
+
+
+def test_a_directory_given_as_a_packing_file_is_named_so(tmp_path):
+    (tmp_path / "packing.h5").mkdir()
+    name = write_case(tmp_path, "rve", {"packing": {"file": "packing.h5"}, "contact": None})
+    refused("hmm", ["rve", name, "-o", "out"], tmp_path, "[packing] file",
+            "packing.h5 is a directory", patch="hmm.experiment.make_packing")
+    name = write_case(tmp_path, "problem", {"micro/packing": "packing.h5",
+                                            "micro/count": None})
+    refused("hmm", ["run", name, "--dry-run"], tmp_path, "[micro] packing",
+            "packing.h5 is a directory")
+
+
+def test_a_scene_names_the_stable_time_step_and_takes_allow_unstable_dt(tmp_path):
+    """One name for the threshold: the message, the scene reference and the guides."""
+    name = write_case(tmp_path, "scene", {"simulation/dt": 1.0})
+    refused("dem", ["run", name, "--dry-run"], tmp_path,
+            "[simulation] dt = 1 s exceeds the stable time step dt_stable",
+            "allow_unstable_dt = true")
+    name = write_case(tmp_path, "scene", {"simulation/dt": 1.0,
+                                          "simulation/allow_unstable_dt": True})
+    code, out, err = run_cli("dem", ["run", name, "--dry-run"], tmp_path)
+    assert code == 0 and "dt = 1 s" in out, err
+    for page in ("quickstart.md", "stability.md", "theory.md", "scene_reference.md"):
+        text = " ".join((ROOT / "docs" / page).read_text().split())
+        assert "stable time step" in text and "allow_unstable_dt" in text, page
+    assert "a larger step than `sim.dt_crit` is refused" not in \
+        (ROOT / "docs" / "quickstart.md").read_text()
+
+
+def test_dry_runs_print_a_memory_estimate(tmp_path):
+    """1 kB a particle (dem.limits.BYTES_PER_PARTICLE), 20 kB an RVE besides."""
+    name = write_case(tmp_path, "scene")  # 30 particles
+    code, out, err = run_cli("dem", ["run", name, "--dry-run"], tmp_path)
+    assert code == 0 and "memory about 30 kB for 30 particles" in out, err
+    name = write_case(tmp_path, "problem")  # 60 disks at each of 32 Gauss points
+    code, out, err = run_cli("hmm", ["run", name, "--dry-run"], tmp_path)
+    assert code == 0 and "memory about 2.6 MB for 1920 particles in 32 RVEs" in out, err
+
+
+def test_steps_on_the_command_line_are_a_64_bit_integer(tmp_path):
+    name = write_case(tmp_path, "scene")
+    refused("dem", ["run", name, "--dry-run", "--steps", str(2**63)], tmp_path,
+            "--steps must be in [0, 9223372036854775807]")
+
+
+def test_a_particle_file_is_counted_against_the_limit_before_it_is_parsed(tmp_path,
+                                                                           monkeypatch):
+    (tmp_path / "packing.txt").write_text("# x y z r\n" + "".join(
+        f"{0.02 * i} 0.04 0.04 0.004\n" for i in range(1, 4)))
+    name = write_case(tmp_path, "scene", {"particles": {
+        "generator": "file", "file": "packing.txt", "density": 2500.0}})
+    monkeypatch.setenv("DEM_MAX_PARTICLES", "2")
+    refused("dem", ["run", name, "--dry-run"], tmp_path,
+            "packing.txt holds more than 2 particles", "DEM_MAX_PARTICLES")
+    monkeypatch.setenv("DEM_MAX_PARTICLES", "3")
+    code, out, err = run_cli("dem", ["run", name, "--dry-run"], tmp_path)
+    assert code == 0 and "3 spheres" in out, err

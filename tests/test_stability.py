@@ -57,7 +57,7 @@ def lattice_sim(factor, **kw):
 
 
 def test_dt_above_critical_is_refused_then_blows_up():
-    with pytest.raises(ValueError, match="exceeds the critical time step"):
+    with pytest.raises(ValueError, match="exceeds the stable time step"):
         lattice_sim(1.05)
     sim = lattice_sim(1.05, allow_unstable_dt=True)
     with pytest.raises(dem.SimulationError, match=r"critical step"):
@@ -80,7 +80,7 @@ def test_dense_lattice_sets_the_refusal_threshold():
         err = max(err, abs(sum(kinetic_energy(sim.bodies)) + elastic_energy(sim) - e0))
     assert err < 0.5 * k0
     assert sim.dt_stable == pytest.approx(0.45 * sim.dt_crit, rel=1e-12)  # 0.9 x 0.5
-    with pytest.raises(ValueError, match="exceeds the critical time step"):
+    with pytest.raises(ValueError, match="exceeds the stable time step"):
         lattice_sim(0.7)
     sim = lattice_sim(0.7, allow_unstable_dt=True)
     with pytest.raises(dem.SimulationError):
@@ -197,7 +197,7 @@ def test_tangential_springs_of_a_close_packing_set_the_threshold():
     assert abs(energy(stable) - e0) < 0.2 * e0
     with pytest.raises(dem.SimulationError):
         sim(1.05).run(2000)
-    with pytest.raises(ValueError, match="exceeds the critical time step"):
+    with pytest.raises(ValueError, match="exceeds the stable time step"):
         dem.Simulation(bodies.copy(), law, box=box, dt=1.01 * probe.dt_stable)
 
 

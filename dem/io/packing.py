@@ -6,6 +6,7 @@ message. :mod:`dem.io.scene` turns these messages into scene-file errors.
 
 import numpy as np
 
+from ..limits import PARTICLES, LimitError
 from .text import fmt as _fmt
 from .text import reason as _reason
 from .text import show as _show
@@ -59,12 +60,10 @@ def lattice_packing(lo, hi, r, spacing, count, rng):
     with np.errstate(over="ignore"):
         sites = float(np.prod(n_axis))
     if count is None:
-        if sites > MAX_GENERATED:
-            raise ValueError(f"the box holds {sites:.4g} lattice sites; set count")
+        PARTICLES.check(sites, "lattice sites in the box (set count to take fewer)")
         count = int(sites)
-    elif count > MAX_GENERATED:
-        raise ValueError(f"count = {count} exceeds the {MAX_GENERATED} particles a scene "
-                         f"may generate")
+    else:
+        PARTICLES.check(count, "count")
     # the first `count` sites do not depend on axes longer than `count`
     n_axis = np.minimum(n_axis, count).astype(int)
     sites = int(np.prod(n_axis, dtype=float)) if sites > count else int(sites)
@@ -76,8 +75,6 @@ def lattice_packing(lo, hi, r, spacing, count, rng):
     return lo + r_max + spacing * idx, radii(r, count, rng)
 
 
-#: most particles a scene may generate (the lattice and random generators)
-MAX_GENERATED = 10**7
 #: solid fraction beyond which random sequential addition cannot place disks (2D) or
 #: spheres (3D): the jamming limits 0.547 and 0.384
 RSA_LIMIT = {2: 0.547, 3: 0.384}
@@ -85,18 +82,16 @@ RSA_LIMIT = {2: 0.547, 3: 0.384}
 
 def check_random_fits(lo, hi, r, count):
     """Refuse (ValueError) a random packing that cannot be made, before anything is
-    allocated: more than :data:`MAX_GENERATED` particles, or ``count`` particles of
-    at least the smallest radius filling more of the box than random placement can.
+    allocated: more than :data:`dem.limits.PARTICLES` particles, or ``count`` particles
+    of at least the smallest radius filling more of the box than random placement can.
     """
-    if count > MAX_GENERATED:
-        raise ValueError(f"count = {count} exceeds the {MAX_GENERATED} particles a scene "
-                         f"may generate")
+    PARTICLES.check(count, "count")
     d = len(lo)
-    r_min = min(r) if isinstance(r, list) else r
-    ball = np.pi * r_min**2 if d == 2 else 4.0 / 3.0 * np.pi * r_min**3
-    with np.errstate(over="ignore"):
+    r_min = np.float64(min(r) if isinstance(r, list) else r)
+    with np.errstate(over="ignore", invalid="ignore"):
+        ball = np.pi * r_min**2 if d == 2 else 4.0 / 3.0 * np.pi * r_min**3
         box = float(np.prod(np.asarray(hi, float) - np.asarray(lo, float)))
-    fraction = count * ball / box
+        fraction = float(count * ball / box)
     if fraction > RSA_LIMIT[d]:
         raise ValueError(f"count = {count} particles of radius >= {_fmt(r_min)} m fill "
                          f"{fraction:.3g} of the box lo..hi; random placement stops at "
@@ -148,12 +143,16 @@ def random_packing(lo, hi, radius, rng, attempts_per_particle=200):
 def read_packing(path, dim):
     """Positions (n, dim) and radii (n,) [m] from rows ``x y [z] r`` of a text file.
 
-    Raises ValueError (message starting with ``file:``) for an unreadable file, wrong
+    Raises ValueError (message starting with ``file:``) for an unreadable file, more
+    rows than :data:`dem.limits.PARTICLES` (counted before the file is parsed), wrong
     columns, non-finite values or overlapping spheres (naming the first pair).
     """
     try:
+        _check_rows(path)
         with open(path, encoding="utf-8") as f:
             rows = np.loadtxt(f, ndmin=2, comments="#")
+    except LimitError:
+        raise
     except OSError as exc:
         raise ValueError(f"file: cannot read {path}: {_reason(exc)}") from exc
     except ValueError as exc:
@@ -177,6 +176,22 @@ def read_packing(path, dim):
         raise ValueError(f"file: {path}: particles {i} and {j} (0-based rows) overlap by "
                  f"{_fmt(ov)} m")
     return pos, radius
+
+
+def _check_rows(path):
+    """Refuse (LimitError) a particle file of more rows than the particle limit,
+    streaming it line by line (nothing of its size is held)."""
+    limit = PARTICLES.value()
+    n = 0
+    with open(path, "rb") as f:
+        for line in f:
+            text = line.lstrip()
+            if text and not text.startswith(b"#"):
+                n += 1
+                if n > limit:
+                    raise LimitError(f"file: {path} holds more than {limit} particles, "
+                                     f"the limit; set the environment variable "
+                                     f"{PARTICLES.env} to raise it")
 
 
 def first_overlap(pos, radius):

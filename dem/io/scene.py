@@ -11,6 +11,7 @@ Layout (SI units throughout; ``d`` is ``[simulation] dim``)::
     dim = 3                       # 2 or 3
     steps = 20000                 # required
     dt = 1e-5                     # [s], optional: default DT_FACTOR x critical step
+    allow_unstable_dt = false     # true: run a dt above the stable time step anyway
     gravity = [0.0, 0.0, -9.81]   # [m/s^2], d components
     damping = 0.0                 # Cundall local damping in [0, 1)
     skin = 0.002                  # [m], optional Verlet skin
@@ -68,6 +69,8 @@ from pathlib import Path
 import numpy as np
 import tomllib
 
+from ..limits import INT64_MAX, MAX_DEPTH, MAX_FILE_BYTES, PARTICLES, LimitError
+from ..limits import check_particle_scales
 from .packing import (
     check_random_fits,
     lattice_packing,
@@ -174,7 +177,12 @@ SCHEMA = {
         "steps": Key("int", default=REQUIRED, range=NONNEGATIVE,
                      doc="Number of time steps to run."),
         "dt": Key("float", "s", range=POSITIVE,
-                  doc="Time step; default DT_FACTOR x the critical time step."),
+                  doc="Time step; default DT_FACTOR x the critical time step dt_crit "
+                      "(or less with heavy dashpots). A dt above the stable time step "
+                      "dt_stable (docs/stability.md) is refused."),
+        "allow_unstable_dt": Key("bool", default=False,
+                                 doc="Run a dt above the stable time step anyway (the "
+                                     "run may blow up)."),
         "gravity": Key("vector", "m/s^2", default=0.0,
                        doc="Gravitational acceleration, dim components."),
         "damping": Key("float", default=0.0, range=Range(0.0, 1.0, hi_closed=False),
@@ -282,16 +290,48 @@ def load_scene(path):
 
 
 def read_toml(path, what="scene"):
-    """Parse a TOML file; a :class:`SceneError` (one line) if unreadable or invalid."""
+    """Parse a TOML file; a :class:`SceneError` (one line) if unreadable or invalid.
+
+    Files above :data:`dem.limits.MAX_FILE_BYTES` and arrays or tables nested deeper
+    than :data:`dem.limits.MAX_DEPTH` are refused (no input file needs them, and
+    the parser and the validation recurse into nested values).
+    """
     path = Path(path)
     try:
-        text = path.read_bytes().decode("utf-8")
+        with open(path, "rb") as f:
+            raw = f.read(MAX_FILE_BYTES + 1)
+        if len(raw) > MAX_FILE_BYTES:
+            raise SceneError(f"{path}: the {what} file is larger than "
+                             f"{MAX_FILE_BYTES // 2**20} MiB, the most an input file "
+                             f"may hold")
+        text = raw.decode("utf-8")
     except (OSError, UnicodeDecodeError) as exc:
         raise SceneError(f"{path}: cannot read {what} file: {_reason(exc)}") from None
     try:
-        return tomllib.loads(text)
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: invalid TOML: {exc}") from None
+    except RecursionError:
+        data = None
+    if data is None or _depth(data) > MAX_DEPTH:
+        raise SceneError(f"{path}: arrays or tables are nested more than {MAX_DEPTH} "
+                         f"levels deep, the most an input file may nest")
+    return data
+
+
+def _depth(value):
+    """How deeply arrays and tables nest in ``value`` (a scalar: 0), without
+    recursion."""
+    deepest, stack = 0, [(value, 0)]
+    while stack:
+        v, level = stack.pop()
+        if isinstance(v, (dict, list)):
+            level += 1
+            deepest = max(deepest, level)
+            if level <= MAX_DEPTH:  # one level beyond the limit is enough to refuse
+                stack.extend((x, level) for x in (v.values() if isinstance(v, dict)
+                                                  else v))
+    return deepest
 
 
 def validate_scene(data, source="<scene>", base_dir="."):
@@ -467,6 +507,9 @@ def _number(ctx, where, key, spec, value, expected=None):
         ctx.fail(f"{key} must be finite, got {value}", where)
     if is_int and value != int(value):
         ctx.fail(f"{key} must be {expected}, got {value}", where)
+    if is_int and not -INT64_MAX - 1 <= value <= INT64_MAX:
+        ctx.fail(f"{key} must be a 64-bit integer (at most {INT64_MAX}), got {value}",
+                 where)
     try:
         value = int(value) if is_int else float(value)
     except OverflowError:
@@ -483,6 +526,12 @@ def _cross_checks(ctx, scene):
             if not lo < hi:
                 ctx.fail(f"needs lo < hi on every axis, got lo[{a}] = {_fmt(lo)}, "
                          f"hi[{a}] = {_fmt(hi)}", "[particles]")
+        try:
+            if p["count"] is not None:
+                PARTICLES.check(p["count"], "count")
+            check_particle_scales(p["radius"], p["density"], ctx.dim)
+        except LimitError as exc:
+            ctx.fail(str(exc), "[particles]")
     for i, w in enumerate(scene["walls"]):
         if not any(w["normal"]):
             ctx.fail("normal must be a non-zero vector", f"[[walls]] #{i + 1}")
@@ -505,6 +554,8 @@ def build_bodies(scene):
     try:
         if gen == "file":
             pos, radius = read_packing(p["file"], ctx.dim)
+            check_particle_scales([float(radius.min()), float(radius.max())],
+                                  p["density"], ctx.dim)
         else:
             rng = np.random.default_rng(p["seed"])
             lo, hi = np.array(p["lo"]), np.array(p["hi"])
@@ -558,19 +609,20 @@ def build_simulation(scene):
     except ValueError as exc:
         ctx.fail(str(exc), "[contact]")
     s = scene["simulation"]
-    if s["dt"] is not None:
+    if s["dt"] is not None and not s["allow_unstable_dt"]:
         from ..contact.model import ContactModel
 
         dt_max = stable_time_step(bodies, ContactModel(law), s["damping"])[0]
         if s["dt"] > dt_max:
-            ctx.fail(f"dt = {_fmt(s['dt'])} s exceeds the critical time step "
-                     f"{dt_max:.4g} s of a packing of these particles and [contact] law",
-                     "[simulation]")
+            ctx.fail(f"dt = {_fmt(s['dt'])} s exceeds the stable time step dt_stable = "
+                     f"{dt_max:.4g} s of these particles and [contact] law; lower dt or "
+                     f"set allow_unstable_dt = true", "[simulation]")
     try:
         sim = Simulation(bodies, law, dt=s["dt"], gravity=s["gravity"],
                          damping=s["damping"], skin=s["skin"],
                          neighbor_backend=s["neighbor_backend"],
-                         overlap_limit=s["overlap_limit"])
+                         overlap_limit=s["overlap_limit"],
+                         allow_unstable_dt=s["allow_unstable_dt"])
     except ValueError as exc:
         ctx.fail(str(exc), "[simulation]")
     o = scene["output"]

@@ -9,8 +9,8 @@ within ``CAP`` steps; a step past the stability line of the packing's stiffest m
 leaves it ringing and the increment ends in :class:`dem.rve.RelaxationError` (or, further
 out, blows up: :class:`dem.SimulationError`).
 Reported per law and step: the steps of each increment, or the failure; and the RVE's
-default step (``dem.rve.quasi_static_dt``) for comparison. This is the measurement
-behind ``dem.rve.DT_FACTOR`` (docs/stability.md).
+default step (``dem.timestep.quasi_static_dt``) for comparison. This is the measurement
+behind ``dem.timestep.QUASI_STATIC_FACTOR`` (docs/stability.md).
 
 usage::
 
@@ -36,7 +36,8 @@ def measure(size, factors, cap):
 
     import dem
     from dem.io.packing import hcp_layers
-    from dem.rve import RelaxationError, quasi_static_dt
+    from dem.rve import RelaxationError
+    from dem.timestep import quasi_static_dt
     from dem.simulation import SimulationError
     from dem.rve_box import BoxRVE
 

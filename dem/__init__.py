@@ -20,9 +20,10 @@ from .observers import (CollectionTracker, EnergyTracker, ParticleTracker, Perio
                         Record, kinetic_energy, stress_and_tangent)
 from .shapes import (Box, Compound, ConvexPolygon, ConvexPolyhedron, CustomShape, Plane,
                      Shape, Sphere)
-from .simulation import DT_FACTOR, Simulation, SimulationError, critical_time_step
+from .simulation import Simulation, SimulationError
 from .state import Bodies
 from .state_objects import ShapeScale, SphereRadius, StateObject
+from .timestep import DT_FACTOR, critical_time_step
 
 __all__ = [
     "Bodies", "Box", "CollectionTracker", "Compound", "ConvexPolygon", "ConvexPolyhedron",

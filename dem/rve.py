@@ -44,13 +44,13 @@ import time
 
 import numpy as np
 
-from .boundary import PeriodicCell
+from .boundary import PeriodicCell, cell_map, load_steps, matrix_root
 from .contact.laws import Law, law_from_spec
 from .rve_measure import measure_periodic
-from .contact.model import ContactModel
-from .limits import PARTICLES, check_particle_scales
-from .simulation import (Simulation, SimulationError, critical_time_step,
-                         damped_stability)
+from .limits import check_particle_scales
+from .simulation import Simulation, SimulationError
+from .timestep import quasi_static_dt
+from .packings import loose_cloud, particle_radii, shape_bodies, solid_volume
 from .shapes import Shape
 from .state import Bodies
 
@@ -67,121 +67,6 @@ class RelaxationError(SimulationError):
 class PackingApart(RelaxationError):
     """Under strain control the packing lost its contacts (a gas in a fixed cell, which
     never relaxes): in an undrained test, liquefaction."""
-
-
-#: default time step of an RVE as a fraction of the critical step, before the
-#: reductions for dashpots and local damping (:func:`quasi_static_dt`). A quasi-static
-#: cell needs no resolved collisions (the engine's DT_FACTOR of 0.07 is set by binary
-#: impacts); its relaxation takes a fixed physical time, so its steps shrink with a
-#: larger dt, and a strain cap per step is then a slower load in units of the
-#: packing's own response time (benchmarks/rve_size_accuracy.py, docs/performance.md).
-#: The worst case is a close packing: hexagonal close packed spheres under the default
-#: local damping of 0.5 stop relaxing from 0.4 x dt_crit without dashpots and from 0.09
-#: x with the paper's viscoelastic ones (benchmarks/rve_step_limit.py, on the box of
-#: examples/ex05_box_vs_periodic.py; docs/stability.md); 0.25 x the reductions gives
-#: 0.20 and 0.063 there
-DT_FACTOR = 0.25
-
-
-def quasi_static_dt(bodies, model, dt=None, damping=0.0):
-    """``dt`` [s], or by default ``DT_FACTOR`` x the critical step of the scene, times
-    :func:`~dem.simulation.damped_stability` of its most damped contact mode and the
-    local damping ``damping``."""
-    if dt is not None:
-        return dt
-    if not isinstance(model, ContactModel):
-        model = ContactModel(model)
-    dt_crit, m_min, _ = critical_time_step(bodies, model)
-    zeta = model.max_damping_ratio(bodies, m_min)
-    return DT_FACTOR * damped_stability(zeta, damping) * dt_crit
-
-
-# --------------------------------------------------------------------------- packings
-def particle_radii(n, radius, fractions=None, seed=0):
-    """``n`` radii [m] drawn from a size distribution, largest first.
-
-    Parameters
-    ----------
-    radius : float, (r_min, r_max) or sequence of radii
-        One size; a range (uniform in radius, by number); or size classes.
-    fractions : sequence of float, optional
-        With size classes: the fraction of solid volume in each class (a grading
-        curve), normalised to 1.
-    seed : int
-
-    Examples
-    --------
-    >>> r = particle_radii(9, [1.0, 2.0], fractions=[0.5, 0.5])
-    >>> r.tolist().count(2.0), r.tolist().count(1.0)  # equal volumes: 8 small per large
-    (1, 8)
-    """
-    n = int(n)
-    if n < 1:
-        raise ValueError(f"the number of particles must be >= 1, got {n}")
-    PARTICLES.check(n, "the number of particles")
-    rng = np.random.default_rng(seed)
-    r = np.atleast_1d(np.asarray(radius, dtype=np.float64))
-    if not (np.all(np.isfinite(r)) and np.all(r > 0.0)):
-        raise ValueError(f"radii must be positive and finite, got {radius}")
-    if fractions is None:
-        if r.size == 1:
-            out = np.full(n, r[0])
-        elif r.size == 2:
-            if not r[1] >= r[0]:
-                raise ValueError(f"radius range must be (r_min, r_max), got {radius}")
-            out = rng.uniform(r[0], r[1], n)
-        else:
-            raise ValueError("several radii need their volume fractions")
-    else:
-        f = np.asarray(fractions, dtype=np.float64)
-        if f.shape != r.shape or np.any(f < 0.0) or not f.sum() > 0.0:
-            raise ValueError("fractions must be non-negative, one per radius, not all zero")
-        # numbers per class from volume fractions (3D weights; the same ranking in 2D)
-        w = f / r**3
-        counts = np.floor(n * w / w.sum()).astype(int)
-        rest = n - counts.sum()
-        order = np.argsort(-(n * w / w.sum() - counts))
-        counts[order[:rest]] += 1
-        out = np.repeat(r, counts)
-    return np.sort(out)[::-1].copy()
-
-
-def loose_cloud(dim, radii, solid_fraction, seed=0, aspect=None):
-    """A periodic cell and non-overlapping random positions for ``radii``.
-
-    Random sequential addition, largest first, in a cell sized for
-    ``solid_fraction`` (below the jamming limit of random addition: about 0.5 in 2D,
-    0.35 in 3D). ``aspect`` (d,) sets the cell's edge ratios (default a cube).
-    Returns ``(cell, pos)``.
-    """
-    radii = np.asarray(radii, dtype=np.float64)
-    if dim not in (2, 3):
-        raise ValueError(f"dim must be 2 or 3, got {dim}")
-    limit = 0.5 if dim == 2 else 0.35
-    if not 0.0 < solid_fraction <= limit:
-        raise ValueError(f"solid_fraction of a random loose cloud must be in (0, {limit}], "
-                         f"got {solid_fraction}")
-    vol = (math.pi * radii**2).sum() if dim == 2 else (4.0 / 3.0 * math.pi * radii**3).sum()
-    a = np.ones(dim) if aspect is None else np.asarray(aspect, dtype=np.float64)
-    side = (vol / solid_fraction / np.prod(a)) ** (1.0 / dim)
-    lengths = side * a
-    if np.any(lengths < 4.0 * radii.max()):
-        raise ValueError("too few particles for a periodic cell: its edge would be "
-                         "shorter than 2 particle diameters")
-    rng = np.random.default_rng(seed)
-    pos = np.empty((radii.size, dim))
-    for k, r in enumerate(radii):
-        for _ in range(10000):
-            x = rng.uniform(0.0, 1.0, dim) * lengths
-            d = pos[:k] - x
-            d -= lengths * np.rint(d / lengths)
-            if k == 0 or np.all(np.einsum("ij,ij->i", d, d) >= (radii[:k] + r) ** 2):
-                pos[k] = x
-                break
-        else:
-            raise ValueError(f"could not place particle {k} of {radii.size} at solid "
-                             f"fraction {solid_fraction}: lower it")
-    return PeriodicCell(lengths), pos
 
 
 # --------------------------------------------------------------------------- the RVE
@@ -230,7 +115,8 @@ class RVE:
     damping : float
         Cundall local damping in [0, 1) (quasi-static runs: 0.2 to 0.7).
     dt : float, optional
-        Time step [s]; default :data:`DT_FACTOR` (0.25) x the critical step, less for
+        Time step [s]; default :data:`dem.timestep.QUASI_STATIC_FACTOR` (0.25) x the
+        critical step, less for
         dashpots and local damping (:func:`quasi_static_dt`).
     mass_scale : float
         Density scaling factor (>= 1 speeds quasi-static runs up by sqrt of it; the
@@ -586,7 +472,7 @@ class RVE:
             cell.lgrad[:] = lgrad
             sim.run(n_chunk, progress=False)
             self.steps_run += n_chunk
-            self.deformation = _expm_step(lgrad, dt, n_chunk) @ self.deformation
+            self.deformation = cell_map(lgrad, dt, n_chunk) @ self.deformation
             cell.lgrad[:] = 0.0
             if done_load < n_load:
                 done_load += n_chunk
@@ -642,126 +528,8 @@ class RVE:
         return rve
 
 
-def load_steps(deps, max_step_strain):
-    """Steps that impose the increment ``deps`` (d, d) of the displacement gradient
-    with no step straining the cell by more than ``max_step_strain``: the largest
-    entry of the stretch ``U - I`` of ``I + deps = R U`` over it, at least one step
-    for any non-zero increment. A rotation strains nothing: the spin of a step is not
-    limited (the cell turns its contacts and bodies exactly, :mod:`dem.boundary`). A
-    symmetric increment is its own stretch.
-
-    Examples
-    --------
-    >>> load_steps(np.diag([1e-3, -5e-4]), 1e-5)
-    100
-    >>> c, s = np.cos(0.5), np.sin(0.5)
-    >>> load_steps(np.array([[c - 1.0, -s], [s, c - 1.0]]), 1e-5)  # a rigid turn
-    1
-    """
-    deps = np.asarray(deps, dtype=np.float64)
-    if not deps.any():
-        return 0
-    if np.array_equal(deps, deps.T):
-        stretch = deps
-    else:
-        w, sv, vt = np.linalg.svd(np.eye(deps.shape[0]) + deps)
-        stretch = (vt.T * sv) @ vt - np.eye(deps.shape[0])
-    return max(1, math.ceil(np.abs(stretch).max() / max_step_strain))
-
-
-def matrix_root(a, n):
-    """The principal ``n``-th root of a (d, d) matrix ``a`` (a deformation map: no
-    eigenvalue on the closed negative real axis).
-
-    A symmetric ``a`` from its eigenvectors, ``V diag(lambda^(1/n)) V^T``; any other
-    as ``exp(log(a) / n)``: square roots (Denman and Beavers' iteration) until ``a``
-    is within 1/4 of the identity, Mercator's series for the logarithm, Taylor's for
-    the exponential, each to round-off. Microseconds for the 2 x 2 and 3 x 3 maps of
-    an RVE, where a general-purpose fractional power takes milliseconds.
-
-    Examples
-    --------
-    >>> a = np.array([[1.0, 0.3], [0.0, 1.0]])  # simple shear: not diagonalisable
-    >>> r = matrix_root(a, 4)
-    >>> bool(np.allclose(np.linalg.matrix_power(r, 4), a, rtol=0.0, atol=1e-15))
-    True
-    """
-    a = np.asarray(a, dtype=np.float64)
-    d = a.shape[0]
-    eye = np.eye(d)
-    if np.array_equal(a, a.T):
-        lam, vec = np.linalg.eigh(a)
-        return (vec * lam ** (1.0 / n)) @ vec.T
-    halvings = 0
-    while np.abs(a - eye).max() > 0.25:
-        if halvings == 64:
-            raise ValueError("matrix_root: no principal root (an eigenvalue on the "
-                             "negative real axis?)")
-        y, z = a, eye
-        for _ in range(100):  # Denman-Beavers: y -> sqrt(a), z -> its inverse
-            y, z = 0.5 * (y + np.linalg.inv(z)), 0.5 * (z + np.linalg.inv(y))
-            if np.abs(y @ y - a).max() <= 1e-15 * np.abs(a).max():
-                break
-        a = y
-        halvings += 1
-    x = a - eye
-    log = np.zeros((d, d))
-    term = eye
-    for m in range(1, 200):  # log(I + x) = x - x^2/2 + x^3/3 - ...
-        term = term @ x
-        log += (term if m % 2 else -term) / m
-        if np.abs(term).max() <= 1e-17 * m:
-            break
-    log *= 2.0**halvings / n
-    out = eye.copy()
-    term = eye
-    for m in range(1, 100):  # exp(log) = I + log + log^2/2 + ...
-        term = term @ log / m
-        out += term
-        if np.abs(term).max() <= 1e-17:
-            break
-    return out
-
-
-def _expm_step(lgrad, dt, n):
-    """The cell map of ``n`` steps at a constant velocity gradient: (I + dt L)^n."""
-    return np.linalg.matrix_power(np.eye(lgrad.shape[0]) + dt * lgrad, int(n))
-
-
 #: the contact geometry rows a sphere RVE passes (it has none)
 _NO_GEOMETRY = np.zeros((0, 7))
-
-
-def solid_volume(bodies):
-    """Volume [m^3] (area [m^2] in 2D) of the particles: spheres/disks from their
-    radii, shapes as mass over density."""
-    sph = bodies.kind == Shape.SPHERE
-    r = bodies.radius[sph]
-    v = float(np.pi * (r**2).sum()) if bodies.dim == 2 else float(
-        4.0 / 3.0 * np.pi * (r**3).sum())
-    shaped = ~sph & (bodies.kind != Shape.PLANE)
-    return v + float(np.sum(bodies.mass[shaped] / bodies.density[shaped]))
-
-
-def shape_bodies(dim, pos, radii, shape, density, seed=0):
-    """Bodies of ``shape(r, rng)`` (see :func:`generate`) at ``pos`` (n, d), one per
-    radius, at random orientations drawn, with the shapes, from ``seed``."""
-    rng = np.random.default_rng([int(seed), 1])  # a stream apart from the cloud's
-    bodies = Bodies.empty(dim)
-    for r, x in zip(radii, pos, strict=True):
-        sh = shape(float(r), rng)
-        if getattr(sh, "dim", dim) != dim or not hasattr(sh, "bounding_radius"):
-            raise ValueError(f"shape(r, rng) must return a {dim}D polytope, got {sh!r}")
-        if sh.bounding_radius > r * (1.0 + 1e-9):
-            raise ValueError(f"shape(r, rng) returned a body of bounding radius "
-                             f"{sh.bounding_radius:.6g} m for r = {r:.6g} m (must be <= r)")
-        if dim == 2:
-            rot = [rng.uniform(0.0, 2.0 * np.pi)]
-        else:
-            q = rng.normal(size=4)
-            rot = (q / np.linalg.norm(q))[None]
-        bodies.add_shapes(sh, x[None], density=density, rot=rot)
-    return bodies
 
 
 def generate(dim, n, radius, law, p0, density=2650.0, fractions=None, seed=0,

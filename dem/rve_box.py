@@ -51,18 +51,12 @@ import numpy as np
 from .contact.laws import Law, law_from_spec
 from .contact.model import ContactModel
 from .observers import contact_summary
-from .rve import (
-    RelaxationError,
-    check_settings,
-    particle_radii,
-    quasi_static_dt,
-    scale_masses,
-    solid_volume,
-    store_settings,
-)
+from .packings import particle_radii, solid_volume
+from .rve import RelaxationError, check_settings, scale_masses, store_settings
 from .shapes import Shape
 from .simulation import Simulation
 from .state import Bodies
+from .timestep import quasi_static_dt
 
 log = logging.getLogger(__name__)
 

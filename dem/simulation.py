@@ -9,26 +9,15 @@ import numpy as np
 from .boundary import PeriodicCell
 from .contact.loops import N_BLOCKS, inner_index, stepper
 from .contact.model import ContactModel
-from .contact.shape_loop import (
-    method_for,
-    pair_incidence,
-    shape_stepper,
-    wall_method_for,
-)
 from .neighbors import NeighborList, carry_history, incidence
+from .shape_scene import ShapeScene
 from .shapes import Shape
 from .state import Bodies, PairState, ShapePairState, ShapeWallState, WallState
 from .status import NOCONVERGE, NONFINITE, OK, OVERLAP, REBUILD
+from .timestep import DT_FACTOR, STABLE_FACTOR, stable_time_step
 
 log = logging.getLogger(__name__)
 
-#: default time step as a fraction of the critical step, from the speed-accuracy chart
-#: (docs/performance.md): the largest factor whose binary-collision errors, averaged
-#: over where in a step contacts start, stay below 1% (about 22 steps per contact)
-DT_FACTOR = 0.07
-#: steps above this fraction of a close packing's stability limit
-#: (:func:`packing_stability` x the two-body critical step) are refused
-STABLE_FACTOR = 0.9
 #: the step loop evaluates the Verlet pairs within this fraction of the skin (the
 #: inner list, refreshed from the Verlet list when a body has moved half of it)
 INNER_SKIN = 0.05
@@ -36,110 +25,11 @@ INNER_SKIN = 0.05
 PARALLEL_MIN_BODIES = 1000
 
 
-#: a close-packed assembly's highest frequency over the two-body one: 1 / the
-#: measured blow-up factor 0.5 of normal springs (docs/stability.md). Its dashpots add
-#: up as its springs do, so its damping ratio is this multiple of the two-body one too
-PACKING_FREQUENCY_RATIO = 2.0
-#: the same ratio per family of contact modes and dimension. Normal springs: 2 (fcc
-#: spheres; the hexagonal disks' sqrt(3) is taken as 2 too). Tangential springs with
-#: their rotational coupling: every body spinning the same way about one axis slips all
-#: its contacts at once, sqrt(40/7) in 3D (fcc: 16 kt r^2 against I = 0.4 m r^2, where
-#: the pair has 7 kt / m) and 2 in 2D (hexagonal: 12 kt r^2 against 0.5 m r^2 and
-#: 6 kt / m); the lattices' stiffness matrices give the same (tests/test_stability.py)
-PACKING_RATIOS = {"normal": {2: PACKING_FREQUENCY_RATIO, 3: PACKING_FREQUENCY_RATIO},
-                  "tangential": {2: 2.0, 3: math.sqrt(40.0 / 7.0)}}
-
-
-def damped_stability(zeta, local_damping=0.0):
-    """The reduction of an RVE's default step (:func:`dem.rve.quasi_static_dt`) for
-    contact damping ratio ``zeta`` and Cundall local damping ``local_damping``.
-
-    Explicit dashpots (velocity Verlet with the half-step velocity) are stable for
-    ``omega dt < 2 (sqrt(1 + z^2) - z)``; here ``z`` =
-    :data:`PACKING_FREQUENCY_RATIO` x ``zeta``, and local damping divides by
-    ``sqrt(1 + a)``. 1 with neither. (The refusal threshold of a step is
-    :func:`packing_stability`, which also raises ``z`` by ``sqrt(1 + a)`` and tells
-    the families of modes apart.)
-
-    >>> round(damped_stability(0.0), 2), round(damped_stability(0.73), 2)
-    (1.0, 0.31)
-    >>> round(damped_stability(0.0, local_damping=0.5), 3)
-    0.816
-    """
-    z = PACKING_FREQUENCY_RATIO * zeta
-    return (math.sqrt(1.0 + z * z) - z) / math.sqrt(1.0 + local_damping)
-
-
-def packing_stability(modes, dim, local_damping=0.0):
-    """Stability limit of a close packing, as a fraction of the two-body critical step
-    ``sqrt(2 m_min / k_max)``.
-
-    ``modes`` are ``(family, k, zeta)`` (:meth:`dem.ContactModel.modes`). A family's
-    fastest packing mode has :data:`PACKING_RATIOS` ``R`` times the two-body frequency
-    (``2 sqrt(k / k_max)`` over the critical step) and damping ratio. Explicit dashpots
-    (velocity Verlet with the half-step velocity) are stable for ``omega dt < 2
-    (sqrt(1 + z^2) - z)``. Cundall local damping ``a`` scales the force, spring and
-    dashpot alike, by up to ``1 + a`` while it opposes the velocity: ``omega`` and
-    ``z`` grow by ``sqrt(1 + a)``. The limit is the smallest over the modes.
-
-    >>> round(packing_stability([("normal", 1.0, 0.0)], 3), 3)
-    0.5
-    >>> round(packing_stability([("normal", 1.0, 0.0), ("tangential", 1.0, 0.0)], 3), 3)
-    0.418
-    """
-    k_max = max(k for _, k, _ in modes)
-    scale = math.sqrt(1.0 + local_damping)
-    limit = math.inf
-    for family, k, zeta in modes:
-        if k <= 0.0:
-            continue
-        ratio = PACKING_RATIOS[family][dim]
-        z = ratio * zeta * scale
-        limit = min(limit, (math.sqrt(1.0 + z * z) - z)
-                    / (ratio * scale * math.sqrt(k / k_max)))
-    return limit
-
-
-def stable_time_step(bodies, model, local_damping=0.0):
-    """The largest step a scene accepts, ``STABLE_FACTOR`` x :func:`packing_stability`
-    x ``dt_crit`` [s] (infinite without free bodies). Returns ``(dt_stable, fraction,
-    dt_crit, m_min, k_max)``, ``fraction`` the close packing's limit over ``dt_crit``."""
-    dt_crit, m_min, k_max = critical_time_step(bodies, model)
-    if not math.isfinite(dt_crit):
-        return math.inf, 0.5, dt_crit, m_min, k_max
-    fraction = packing_stability(model.modes(bodies, m_min), bodies.dim, local_damping)
-    return STABLE_FACTOR * fraction * dt_crit, fraction, dt_crit, m_min, k_max
-
-
 class SimulationError(RuntimeError):
     """A run stopped on a physical failure (non-finite state, excessive overlap)."""
 
 
-def critical_time_step(bodies, model):
-    """Critical time step [s] from the lightest body and the stiffest contact.
-
-    ``dt_crit = sqrt(2 m_min / k_max)``: the velocity Verlet stability limit
-    (``dt < 2 / omega``) of two of the lightest bodies joined by the stiffest spring,
-    where a tangential spring counts with its rotational coupling ``1 + m r^2 / I``.
-    For non-spherical bodies the normal spring acts off-centre too: both count with
-    ``1 + m r^2 / I_min`` (``r`` the bounding radius), the largest over the bodies.
-    Returns ``(dt_crit, m_min, k_max)``.
-    """
-    if not isinstance(model, ContactModel):
-        model = ContactModel(model)
-    free = (~bodies.is_fixed) & (bodies.kind != Shape.PLANE)
-    if not free.any():
-        return math.inf, math.inf, 0.0
-    m_min = float(bodies.mass[free].min())
-    k_max = model.max_stiffness(bodies)
-    shaped = free & (bodies.kind != Shape.SPHERE)
-    if shaped.any():
-        arm = bodies.mass[shaped] * bodies.radius[shaped] ** 2
-        k_max *= 1.0 + float(np.max(arm / bodies.inertia[shaped].min(axis=1)))
-    return math.sqrt(2.0 * m_min / k_max), m_min, k_max
-
-
-class Simulation:
+class Simulation(ShapeScene):
     """A DEM scene advanced in time.
 
     Parameters
@@ -513,151 +403,6 @@ class Simulation:
         # after each drift, this catches growth alone
         if 2.0 * self._grow() > 0.5 * self.neighbors.skin:
             self._rebuild()
-
-    # ------------------------------------------------------------------ level-set shapes
-    def _shape_setup(self, periodic):
-        """Buckets of the scene's kinds and the loop compiled for them."""
-        b = self.bodies
-        force_admm = self.detection == "admm"
-        self._part_table()
-        kinds = sorted({int(k) for k in np.unique(self._ekind) if k != Shape.PLANE})
-        self._bucket_keys = [(ka, kb) for ka in kinds for kb in kinds if ka <= kb]
-        self._bucket_methods = np.array([method_for(ka, kb, force_admm)
-                                         for ka, kb in self._bucket_keys], np.int64)
-        has_walls = bool(np.any(b.kind == Shape.PLANE))
-        self._wall_kinds = kinds if has_walls else []
-        self._wall_methods = np.array([wall_method_for(k, force_admm)
-                                       for k in self._wall_kinds], np.int64)
-        customs = {id(sh.user_sdf): sh.user_sdf for sh in b.table.shapes
-                   if getattr(sh, "code", None) == Shape.CUSTOM}
-        if len(customs) > 1:
-            raise ValueError("a scene may hold one user-defined SDF function (shapes of it "
-                             "may differ by their parameters)")
-        custom = next(iter(customs.values())) if customs else None
-        self._shape_kernel = shape_stepper(
-            self.dim, tuple(sorted(set(self._bucket_methods.tolist()))),
-            tuple(sorted(set(self._wall_methods.tolist()))), self.model.kind("pp").code,
-            self.model.kind("pw").code, periodic=periodic, custom_sdf=custom)
-
-    def _part_table(self):
-        """The parts detection works on: one per body, one per convex part of a
-        compound (body-frame poses from the shape table's part pool)."""
-        b, t, d = self.bodies, self.bodies.table, self.dim
-        comp = np.flatnonzero(b.kind == Shape.COMPOUND)
-        count = np.ones(b.n, np.int64)
-        rows = b.shape[comp].astype(np.int64)
-        count[comp] = t.cstart[rows + 1] - t.cstart[rows]
-        self._estart = np.concatenate(([0], np.cumsum(count))).astype(np.int64)
-        self._ecount = count
-        self._has_parts = comp.size > 0
-        ebody = np.repeat(np.arange(b.n, dtype=np.int64), count)
-        self._ekind = b.kind[ebody].astype(np.int64)
-        self._eshape = b.shape[ebody].astype(np.int64)
-        ne = ebody.size
-        eoff, eq, eprad = np.zeros((ne, 3)), np.zeros((ne, 4)), np.full(ne, -1.0)
-        if d == 3:
-            eq[:, 0] = 1.0
-        for body, s in zip(comp, rows, strict=True):
-            e = slice(self._estart[body], self._estart[body + 1])
-            pool = slice(t.cstart[s], t.cstart[s + 1])
-            self._ekind[e] = t.part_kind[pool]
-            self._eshape[e] = t.part_row[pool]
-            eoff[e], eq[e], eprad[e] = t.part_off[pool], t.part_rot[pool], t.part_rad[pool]
-        if not self._has_parts:  # the kernel reads the body arrays themselves
-            ebody, eoff, eq, eprad = ebody[:0], eoff[:0], eq[:0], eprad[:0]
-        self._ebody, self._eoff, self._eq, self._eprad = ebody, eoff, eq, eprad
-        self._epos = np.zeros((ne, d))
-        self._erot = np.zeros((ne, b.rot.shape[1]))
-        self._erad = np.zeros(ne)
-        self._enormal = np.zeros((ne, d))
-
-    def _expand_parts(self):
-        """One row per pair of parts in the lists just built (runs in part order)."""
-        nl, count = self.neighbors, self._ecount
-        reps = count[nl.pairs[:, 0]] * count[nl.pairs[:, 1]]
-        nl.pairs = np.repeat(nl.pairs, reps, axis=0)
-        nl.img = np.repeat(nl.img, reps, axis=0)
-        nl.wall_pairs = np.repeat(nl.wall_pairs, count[nl.wall_pairs[:, 0]], axis=0)
-
-    def _part_ids(self, pairs):
-        """The parts (m, 2) of the rows of an expanded list: the r-th row of the run of
-        (i, j) is parts (r // n_j, r % n_j) of i and j."""
-        m = pairs.shape[0]
-        if not self._has_parts:
-            return pairs
-        out = np.zeros((m, 2), np.int32)
-        if m == 0:
-            return out
-        rows = np.arange(m)
-        new = np.r_[True, np.any(pairs[1:] != pairs[:-1], axis=1)]
-        r = rows - np.maximum.accumulate(np.where(new, rows, 0))
-        nj = self._ecount[pairs[:, 1]]
-        out[:, 0] = self._estart[pairs[:, 0]] + r // nj
-        out[:, 1] = self._estart[pairs[:, 1]] + r % nj
-        return out
-
-    def _shape_rebuild(self, old):
-        nl = self.neighbors
-        counts = self._row_counts()
-        ss = self.shape_state = ShapePairState.zeros(counts, self.dim)
-        sw = self.shape_wall_state = ShapeWallState.zeros(counts, self.dim)
-        if old[0] is not None and old[4] is not None:  # ADMM warm starts carry over
-            carry_history(old[0], old[4].warm, nl.pairs, ss.warm)
-            carry_history(old[1], old[5].wwarm, nl.wall_pairs, sw.wwarm)
-        self._shape_index()
-
-    def _shape_index(self):
-        """Pairs and wall pairs grouped by bucket; each body's pair and wall rows."""
-        b, nl = self.bodies, self.neighbors
-        n, m, mw = b.n, nl.pairs.shape[0], nl.wall_pairs.shape[0]
-        self._parts = self._part_ids(nl.pairs)
-        self._wparts = self._part_ids(nl.wall_pairs)
-        kinds = self._ekind
-        lut = np.full((len(Shape), len(Shape)), -1, np.int64)  # (kind, kind) -> bucket
-        for q, (ka, kb) in enumerate(self._bucket_keys):
-            lut[ka, kb] = lut[kb, ka] = q
-        code = lut[kinds[self._parts[:, 0]], kinds[self._parts[:, 1]]]
-        self._order = np.argsort(code, kind="stable").astype(np.int64)
-        self._bstart = np.searchsorted(code[self._order],
-                                       np.arange(len(self._bucket_keys) + 1)).astype(np.int64)
-        wlut = np.full(len(Shape), -1, np.int64)
-        wlut[self._wall_kinds] = np.arange(len(self._wall_kinds))
-        wcode = wlut[kinds[self._wparts[:, 0]]]
-        self._worder = np.argsort(wcode, kind="stable").astype(np.int64)
-        self._wbstart = np.searchsorted(wcode[self._worder],
-                                        np.arange(len(self._wall_kinds) + 1)).astype(np.int64)
-        self._inc_start = np.zeros(n + 1, np.int64)
-        self._inc_list = np.zeros(2 * m, np.int64)
-        pair_incidence(nl.pairs, n, self._inc_start, self._inc_list)
-        self._winc_start = np.zeros(n + 1, np.int64)
-        self._winc_list = np.zeros(mw, np.int64)
-        incidence(nl.wall_pairs, n, 0, self._winc_start, self._winc_list)
-
-    def _shape_call(self, n_steps, prime, resume):
-        b, nl, ps, ws = self.bodies, self.neighbors, self.pair_state, self.wall_state
-        ss, sw = self.shape_state, self.shape_wall_state
-        if self._has_parts:
-            parts = (self._ekind, self._eshape, self._epos, self._erot, self._erad,
-                     self._enormal)
-        else:
-            parts = (self._kind64, self._shape64, b.pos, b.rot, b.radius, b.normal)
-        return self._shape_kernel(
-            n_steps, prime, resume, self.dt, self.gravity, self.damping, nl.skin,
-            self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel, b.force, b.torque, b.radius,
-            b.mass, self._inv_mass, self._inv_inertia, self._fixed, b.normal, b.mat_id,
-            nl.pos_ref, self._grow(), self._hmat,
-            self._lgrad, self._cellref, self.cell is not None,
-            b.table.arrays(), self.admm_tol, self.admm_max_iter, self._has_parts,
-            self._ebody, self._eoff, self._eq, self._eprad, *parts,
-            nl.pairs, self._parts, nl.img,
-            self._order, self._bstart, self._bucket_methods, ps.touch,
-            ps.hist, ss.warm, ss.iters, ss.pgeom, ps.fpair, ss.tpair,
-            self._inc_start, self._inc_list, self._params_pp,
-            nl.wall_pairs, self._wparts,
-            self._worder, self._wbstart, self._wall_methods, ws.whist,
-            sw.wwarm, sw.witers, sw.wgeom, ws.wforce, ws.wtorque,
-            self._winc_start, self._winc_list, self._params_pw, self._status,
-            self.wall_work)
 
     # ------------------------------------------------------------------ state copies
     #: the contact-state bundles: attribute name and class (:mod:`dem.state`); the last

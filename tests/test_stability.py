@@ -154,7 +154,7 @@ def test_packing_ratios_are_the_close_packed_lattices_fastest_modes(dim):
     alone (fcc 2, hexagonal sqrt(3), taken as 2) and for tangential springs alone with
     their rotational coupling (fcc sqrt(40/7), hexagonal 2: the bodies all spinning the
     same way)."""
-    from dem.simulation import PACKING_RATIOS
+    from dem.timestep import PACKING_RATIOS
 
     rot = {2: 3.0, 3: 3.5}[dim]
     for family, kn, kt, pair_k in (("normal", 1.0, 0.0, 1.0),

@@ -594,7 +594,8 @@ def build_simulation(scene):
         The ``[output]`` section with the directory and HDF5 file resolved.
     """
     from ..contact.laws import HertzMindlin, LinearSpring
-    from ..simulation import Simulation, stable_time_step
+    from ..simulation import Simulation
+    from ..timestep import stable_time_step
 
     ctx = _Context(scene.get("source", "<scene>"), Path("."))
     bodies = build_bodies(scene)

@@ -148,12 +148,12 @@ def test_shear_loads_the_tangential_spring_through_the_affine_velocity(across, k
 def test_thread_count_does_not_change_a_deforming_run():
     if numba.config.NUMBA_NUM_THREADS < 2:
         pytest.skip("needs NUMBA_NUM_THREADS >= 2 to compare 1 and 2 threads")
-    from dem import rve
+    from dem import packings
 
     out = []
     for threads in (1, 2):
-        radii = rve.particle_radii(300, (0.8, 1.2), seed=1)
-        cell, pos = rve.loose_cloud(2, radii, 0.5, seed=1)
+        radii = packings.particle_radii(300, (0.8, 1.2), seed=1)
+        cell, pos = packings.loose_cloud(2, radii, 0.5, seed=1)
         bodies = dem.Bodies.spheres(pos, radius=radii, density=1.0)
         sim = dem.Simulation(bodies, dem.LinearSpring(kn=1e3, kt=5e2, mu=0.5), box=cell,
                              damping=0.3, threads=threads)
@@ -165,10 +165,10 @@ def test_thread_count_does_not_change_a_deforming_run():
 
 
 def test_checkpoint_of_a_deforming_cell_restarts_bit_for_bit(tmp_path):
-    from dem import rve
+    from dem import packings
 
-    radii = rve.particle_radii(80, (0.8, 1.2), seed=2)
-    cell, pos = rve.loose_cloud(2, radii, 0.5, seed=2)
+    radii = packings.particle_radii(80, (0.8, 1.2), seed=2)
+    cell, pos = packings.loose_cloud(2, radii, 0.5, seed=2)
     law = dem.LinearSpring(kn=1e3, kt=5e2, mu=0.5)
     sim = dem.Simulation(dem.Bodies.spheres(pos, radius=radii, density=1.0), law,
                          box=cell, damping=0.3)

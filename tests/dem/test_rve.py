@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import dem
-from dem import rve
+from dem import packings, rve
 import naive
 from dem.boundary import PeriodicCell
 
@@ -85,17 +85,17 @@ def test_consolidation_reaches_the_target_pressure(packing):
 
 
 def test_packing_is_a_function_of_the_seed():
-    a = rve.particle_radii(30, (1.0, 2.0), seed=4)
-    assert np.array_equal(a, rve.particle_radii(30, (1.0, 2.0), seed=4))
-    c1, p1 = rve.loose_cloud(2, a, 0.4, seed=4)
-    c2, p2 = rve.loose_cloud(2, a, 0.4, seed=4)
+    a = packings.particle_radii(30, (1.0, 2.0), seed=4)
+    assert np.array_equal(a, packings.particle_radii(30, (1.0, 2.0), seed=4))
+    c1, p1 = packings.loose_cloud(2, a, 0.4, seed=4)
+    c2, p2 = packings.loose_cloud(2, a, 0.4, seed=4)
     assert np.array_equal(p1, p2) and np.array_equal(c1.h, c2.h)
-    _, p3 = rve.loose_cloud(2, a, 0.4, seed=5)
+    _, p3 = packings.loose_cloud(2, a, 0.4, seed=5)
     assert not np.array_equal(p1, p3)
 
 
 def test_size_classes_follow_the_volume_fractions():
-    r = rve.particle_radii(2000, [1.0, 2.0], fractions=[0.5, 0.5])
+    r = packings.particle_radii(2000, [1.0, 2.0], fractions=[0.5, 0.5])
     vol = {x: (r[r == x] ** 3).sum() for x in (1.0, 2.0)}
     assert vol[1.0] / vol[2.0] == pytest.approx(1.0, rel=0.02)
 
@@ -218,9 +218,9 @@ def test_bad_inputs_are_refused(packing):
     with pytest.raises(ValueError, match="finite"):
         packing.apply_strain(np.zeros((3, 3)))
     with pytest.raises(ValueError, match="solid_fraction"):
-        rve.loose_cloud(2, [1.0], 0.9)
+        packings.loose_cloud(2, [1.0], 0.9)
     with pytest.raises(ValueError, match="radii must be positive"):
-        rve.particle_radii(3, -1.0)
+        packings.particle_radii(3, -1.0)
     with pytest.raises(ValueError, match="tangent method"):
         packing.tangent("secant")
     with pytest.raises(ValueError, match="unknown contact law"):
@@ -366,7 +366,7 @@ def test_shapes_for_a_packing_must_fit_their_radius():
     from dem.shapes import ConvexPolygon
 
     with pytest.raises(ValueError, match="bounding radius"):
-        rve.shape_bodies(2, np.zeros((1, 2)), [1e-3], lambda r, rng:
+        packings.shape_bodies(2, np.zeros((1, 2)), [1e-3], lambda r, rng:
                          ConvexPolygon.regular(4, 2 * r), 2650.0)
     with pytest.raises(ValueError, match="2D polytope"):
-        rve.shape_bodies(2, np.zeros((1, 2)), [1e-3], lambda r, rng: r, 2650.0)
+        packings.shape_bodies(2, np.zeros((1, 2)), [1e-3], lambda r, rng: r, 2650.0)

@@ -10,10 +10,18 @@ inherits it. Its state arrays are the shape bundles of :mod:`dem.state`.
 
 import numpy as np
 
-from .contact.shape_loop import method_for, pair_incidence, shape_stepper, wall_method_for
+from .contact.shape_loop import (
+    BucketIndex,
+    Detection,
+    PartArrays,
+    method_for,
+    pair_incidence,
+    shape_stepper,
+    wall_method_for,
+)
 from .neighbors import carry_history, incidence
 from .shapes import Shape
-from .state import ShapePairState, ShapeWallState
+from .state import NeighborArrays, ShapePairState, ShapeWallState
 
 
 class ShapeScene:
@@ -140,27 +148,21 @@ class ShapeScene:
         incidence(nl.wall_pairs, n, 0, self._winc_start, self._winc_list)
 
     def _shape_call(self, n_steps, prime, resume):
-        b, nl, ps, ws = self.bodies, self.neighbors, self.pair_state, self.wall_state
-        ss, sw = self.shape_state, self.shape_wall_state
+        b, nl = self.bodies, self.neighbors
         if self._has_parts:
             parts = (self._ekind, self._eshape, self._epos, self._erot, self._erad,
                      self._enormal)
         else:
             parts = (self._kind64, self._shape64, b.pos, b.rot, b.radius, b.normal)
         return self._shape_kernel(
-            n_steps, prime, resume, self.dt, self.gravity, self.damping, nl.skin,
-            self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel, b.force, b.torque, b.radius,
-            b.mass, self._inv_mass, self._inv_inertia, self._fixed, b.normal, b.mat_id,
-            nl.pos_ref, self._grow(), self._hmat,
-            self._lgrad, self._cellref, self.cell is not None,
-            b.table.arrays(), self.admm_tol, self.admm_max_iter, self._has_parts,
-            self._ebody, self._eoff, self._eq, self._eprad, *parts,
-            nl.pairs, self._parts, nl.img,
-            self._order, self._bstart, self._bucket_methods, ps.touch,
-            ps.hist, ss.warm, ss.iters, ss.pgeom, ps.fpair, ss.tpair,
-            self._inc_start, self._inc_list, self._params_pp,
-            nl.wall_pairs, self._wparts,
-            self._worder, self._wbstart, self._wall_methods, ws.whist,
-            sw.wwarm, sw.witers, sw.wgeom, ws.wforce, ws.wtorque,
-            self._winc_start, self._winc_list, self._params_pw, self._status,
-            self.wall_work)
+            n_steps, prime, resume, self._settings(), self._body_arrays(),
+            self._cell_arrays(), NeighborArrays(nl.pairs, nl.img, nl.wall_pairs, nl.pos_ref),
+            self.pair_state, self.wall_state, self.shape_state, self.shape_wall_state,
+            Detection(b.table.arrays(), self.admm_tol, self.admm_max_iter),
+            PartArrays(self._has_parts, self._ebody, self._eoff, self._eq, self._eprad,
+                       *parts),
+            BucketIndex(self._parts, self._order, self._bstart, self._bucket_methods,
+                        self._inc_start, self._inc_list),
+            BucketIndex(self._wparts, self._worder, self._wbstart, self._wall_methods,
+                        self._winc_start, self._winc_list),
+            self._params_pp, self._params_pw, self._status, self.wall_work)

@@ -7,12 +7,22 @@ import numba
 import numpy as np
 
 from .boundary import PeriodicCell
-from .contact.loops import N_BLOCKS, inner_index, stepper
+from .contact.loops import N_BLOCKS, InnerIndex, inner_index, stepper
 from .contact.model import ContactModel
 from .neighbors import NeighborList, carry_history, incidence
 from .shape_scene import ShapeScene
 from .shapes import Shape
-from .state import Bodies, PairState, ShapePairState, ShapeWallState, WallState
+from .state import (
+    BodyArrays,
+    Bodies,
+    CellArrays,
+    NeighborArrays,
+    PairState,
+    ShapePairState,
+    ShapeWallState,
+    StepSettings,
+    WallState,
+)
 from .status import NOCONVERGE, NONFINITE, OK, OVERLAP, REBUILD
 from .timestep import DT_FACTOR, STABLE_FACTOR, stable_time_step
 
@@ -234,19 +244,29 @@ class Simulation(ShapeScene):
     def _call(self, n_steps, prime, resume=False):
         if self.shaped:
             return self._shape_call(n_steps, prime, resume)
-        b, nl, ps, ws = self.bodies, self.neighbors, self.pair_state, self.wall_state
+        nl = self.neighbors
         return self._kernel(
-            n_steps, prime, resume, numba.get_num_threads() == 1, self.dt, self.gravity,
-            self.damping, nl.skin, self.overlap_limit, b.pos, b.vel, b.rot, b.ang_vel,
-            b.force, b.torque, b.radius, b.mass, self._inv_mass, self._inv_inertia,
-            self._fixed, b.normal, b.mat_id, nl.pos_ref, self._grow(), self._hmat,
-            self._lgrad, self._cellref, self.cell is not None, nl.pairs, nl.img, ps.touch,
-            ps.hist, ps.fpair, self._contrib,
-            self._slot, self._inc_start, self._blk_start, self._params_pp, self._inner,
-            self._n_inner,
-            self._pos_inner, INNER_SKIN * nl.skin, nl.wall_pairs, ws.whist,
-            ws.wforce, ws.wtorque, self._wstart, self._params_pw, self._status,
-            self.wall_work)
+            n_steps, prime, resume, numba.get_num_threads() == 1, self._settings(),
+            self._body_arrays(), self._cell_arrays(),
+            NeighborArrays(nl.pairs, nl.img, nl.wall_pairs, nl.pos_ref), self.pair_state,
+            self.wall_state, InnerIndex(self._contrib, self._slot, self._inc_start,
+                                        self._blk_start, self._inner, self._n_inner,
+                                        self._pos_inner, self._wstart),
+            self._params_pp, self._params_pw, self._status, self.wall_work)
+
+    def _settings(self):
+        return StepSettings(self.dt, self.gravity, self.damping, self.neighbors.skin,
+                            self.overlap_limit, INNER_SKIN * self.neighbors.skin,
+                            self._grow())
+
+    def _body_arrays(self):
+        b = self.bodies
+        return BodyArrays(b.pos, b.vel, b.rot, b.ang_vel, b.force, b.torque, b.radius,
+                          b.mass, self._inv_mass, self._inv_inertia, self._fixed, b.normal,
+                          b.mat_id)
+
+    def _cell_arrays(self):
+        return CellArrays(self._hmat, self._lgrad, self._cellref, self.cell is not None)
 
     def prime(self):
         """Build the neighbour lists and the forces of the current state (idempotent)."""

@@ -463,3 +463,66 @@ class ShapeWallState(NamedTuple):
     COLUMNS = (Column("wall", (N_WARM,), np.float64, "ADMM warm start"),
                Column("wall", (), np.int64, "ADMM iterations of the last solve"),
                Column("wall", (N_GEOM,), np.float64, "overlap [m], point [m], normal"))
+
+
+# --------------------------------------------------------------------------- kernel views
+# What a compiled step loop takes, a few tuples instead of dozens of arrays. They hold
+# the arrays themselves (no copies) and are made afresh at every call, so they never
+# outlive an array that was replaced.
+
+class BodyArrays(NamedTuple):
+    """The per-body arrays of a step loop: :class:`Bodies`' own, and the inverse
+    masses and inertias (0 for fixed bodies) and fixed flags (uint8) the simulation
+    keeps beside them."""
+
+    pos: np.ndarray
+    vel: np.ndarray
+    rot: np.ndarray
+    ang_vel: np.ndarray
+    force: np.ndarray
+    torque: np.ndarray
+    radius: np.ndarray
+    mass: np.ndarray
+    inv_mass: np.ndarray
+    inv_inertia: np.ndarray
+    is_fixed: np.ndarray
+    normal: np.ndarray
+    mat_id: np.ndarray
+
+
+class CellArrays(NamedTuple):
+    """The periodic cell of a step loop: its matrix ``hmat`` (d, d) [m], velocity
+    gradient ``lgrad`` (d, d) [1/s], ``cellref`` (2, d, d), the inverse matrix at the
+    Verlet build and at the inner list's making, and ``is_cell``: True for a deforming
+    cell (an orthogonal periodic box or no box passes False and a zero ``lgrad``)."""
+
+    hmat: np.ndarray
+    lgrad: np.ndarray
+    cellref: np.ndarray
+    is_cell: bool
+
+
+class StepSettings(NamedTuple):
+    """The settings of a step loop: time step [s], gravity (d,) [m/s^2], local damping,
+    Verlet skin [m], overlap limit (fraction of the smaller radius), the inner list's
+    skin [m] (sphere loop), and the largest radius growth since the Verlet build [m]
+    (state objects)."""
+
+    dt: float
+    gravity: np.ndarray
+    damping: float
+    skin: float
+    overlap_limit: float
+    skin_inner: float
+    grow: float
+
+
+class NeighborArrays(NamedTuple):
+    """The neighbour lists of a step loop: Verlet pairs (m, 2) int32 and their periodic
+    image offsets ``img`` (m, d) int32, body-wall pairs (mw, 2) int32, and the
+    positions at the build ``pos_ref`` (n, d) [m]."""
+
+    pairs: np.ndarray
+    img: np.ndarray
+    wall_pairs: np.ndarray
+    pos_ref: np.ndarray

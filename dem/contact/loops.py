@@ -33,6 +33,7 @@ pairs in contact at the last force evaluation.
 """
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -640,6 +641,24 @@ def _strain_norm(fmap):
     return math.sqrt(s)
 
 
+class InnerIndex(NamedTuple):
+    """The sphere loop's index of its inner contact list (made by the loop itself when
+    ``n_inner[0]`` is -1): per-body contribution rows ``contrib`` (2 m, d + r) and each
+    pair's two rows ``slot`` (m, 2); each body's first row ``inc_start`` (n + 1,); the
+    blocks' first internal pairs ``blk_start`` (N_BLOCKS + 1,); the list ``inner`` (m,)
+    and its (total, internal) lengths ``n_inner`` (2,); the positions it was made at
+    ``pos_inner`` (n, d) [m]; each body's first wall pair ``wstart`` (n + 1,)."""
+
+    contrib: np.ndarray
+    slot: np.ndarray
+    inc_start: np.ndarray
+    blk_start: np.ndarray
+    inner: np.ndarray
+    n_inner: np.ndarray
+    pos_inner: np.ndarray
+    wstart: np.ndarray
+
+
 def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
     """The compiled multi-step kernel for ``dim`` (2 or 3) and two law codes.
 
@@ -660,15 +679,16 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
     DEFORM = PERIODIC
 
     @kernel(parallel=True)
-    def run_steps(n_steps, prime, resume, serial, dt, gravity, damping, skin, overlap_limit,
-                  pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass,
-                  inv_inertia, is_fixed, normal, mat_id, pos_ref, grow, hmat, lgrad,
-                  cellref, is_cell, pairs, img, touch, hist, fpair, contrib, slot, inc_start,
-                  blk_start,
-                  params_pp, inner, n_inner, pos_inner, skin_inner,
-                  wpairs, whist, wforce, wtorque, wstart, params_pw,
-                  status_out, work_out):
+    def run_steps(n_steps, prime, resume, serial, settings, body, cell, nbr, pstate,
+                  wstate, index, params_pp, params_pw, status_out, work_out):
         """Advance ``n_steps``; returns the number of completed steps.
+
+        The arrays come in bundles (:mod:`dem.state`): ``settings``
+        (:class:`~dem.state.StepSettings`), ``body`` (:class:`~dem.state.BodyArrays`),
+        ``cell`` (:class:`~dem.state.CellArrays`), ``nbr``
+        (:class:`~dem.state.NeighborArrays`), the contact state ``pstate``
+        (:class:`~dem.state.PairState`) and ``wstate`` (:class:`~dem.state.WallState`),
+        and the loop's own index of the inner list (:class:`InnerIndex`).
 
         ``prime`` = True computes forces at the current state without moving anything
         (tangential springs are not advanced). ``resume`` = True finishes a step whose
@@ -678,6 +698,14 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
         ``status_out`` (4,) int64 receives (code, i, j, inner-list refreshes); ``work_out`` (1,)
         accumulates the work of walls on bodies [J].
         """
+        dt, gravity, damping, skin, overlap_limit, skin_inner, grow = settings
+        (pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass, inv_inertia,
+         is_fixed, normal, mat_id) = body
+        hmat, lgrad, cellref, is_cell = cell
+        pairs, img, wpairs, pos_ref = nbr
+        hist, touch, fpair = pstate
+        whist, wforce, wtorque = wstate
+        contrib, slot, inc_start, blk_start, inner, n_inner, pos_inner, wstart = index
         n = pos.shape[0]
         mw = wpairs.shape[0]
         status_out[0] = OK

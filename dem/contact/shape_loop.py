@@ -33,6 +33,7 @@ second half kick.
 """
 
 import math
+from typing import NamedTuple
 
 import numba
 import numpy as np
@@ -205,6 +206,49 @@ def _sphere_sphere(dim, a, b, sx, sy, sz, pos, radius):
         pos[a, 2] + t * nz if dim == 3 else 0.0)
 
 
+class Detection(NamedTuple):
+    """Contact detection settings of the shape loop: the shape table's arrays
+    (:meth:`dem.shapes.table.ShapeTable.arrays`), the ADMM tolerance (relative to the
+    smaller bounding radius) and its iteration cap."""
+
+    geo: tuple
+    tol: float
+    max_iter: int
+
+
+class PartArrays(NamedTuple):
+    """The parts detection works on (one per body, one per convex part of a compound):
+    ``has_parts`` (a compound is present), each part's body ``ebody``, body-frame
+    offset ``eoff`` and orientation ``eq``, own radius ``eprad`` (-1: the body's);
+    and the part arrays the loop reads: kind, shape row, position, orientation,
+    radius and wall normal (the body arrays themselves when ``has_parts`` is False)."""
+
+    has_parts: bool
+    ebody: np.ndarray
+    eoff: np.ndarray
+    eq: np.ndarray
+    eprad: np.ndarray
+    ekind: np.ndarray
+    eshape: np.ndarray
+    epos: np.ndarray
+    erot: np.ndarray
+    erad: np.ndarray
+    enormal: np.ndarray
+
+
+class BucketIndex(NamedTuple):
+    """Pairs (or wall pairs) grouped by bucket: each row's parts ``parts`` (m, 2), the
+    rows in bucket order ``order`` with each bucket's first ``bstart``, each bucket's
+    detection method ``methods``, and each body's rows ``inc_start``/``inc_list``."""
+
+    parts: np.ndarray
+    order: np.ndarray
+    bstart: np.ndarray
+    methods: np.ndarray
+    inc_start: np.ndarray
+    inc_list: np.ndarray
+
+
 def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                   custom_sdf=None):
     """The compiled multi-step kernel for one scene's combination of buckets.
@@ -227,16 +271,9 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
     U_ADMM = int(use_admm)
     W_ADM = int(use_admm)
 
-    def run_shape_steps(n_steps, prime, resume, dt, gravity, damping, skin, overlap_limit,
-                        pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass,
-                        inv_inertia, is_fixed, normal, mat_id, pos_ref, grow,
-                        hmat, lgrad, cellref, is_cell, geo, tol, max_iter, has_parts, ebody,
-                        eoff, eq, eprad, ekind, eshape, epos, erot, erad, enormal,
-                        pairs, parts, img, order, bstart, bmethod, touch, hist, warm, iters,
-                        pgeom, fpair, tpair, inc_start, inc_list, params_pp,
-                        wpairs, wparts, worder, wbstart, wbmethod, whist, wwarm, witers,
-                        wgeom, wforce, wtorque, winc_start, winc_list, params_pw,
-                        status_out, work_out):
+    def run_shape_steps(n_steps, prime, resume, settings, body, cell, nbr, pstate, wstate,
+                        sstate, swstate, detection, part_arrays, pindex, windex, params_pp,
+                        params_pw, status_out, work_out):
         """Advance ``n_steps``; returns the number of completed steps (see
         :func:`dem.contact.loops.stepper` for ``prime``/``resume``/status and for the
         deforming cell: ``hmat`` advanced by ``lgrad``, ``cellref[0]`` = H^-1 at the
@@ -246,7 +283,27 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
         body is one part, a compound one per convex part. With ``has_parts`` each part's
         world pose follows its body's every step (``ebody``, body-frame offset ``eoff``
         and orientation ``eq``, radius ``eprad``, or the body's where negative);
-        without, the part arrays are the body arrays themselves."""
+        without, the part arrays are the body arrays themselves.
+
+        The arrays come in bundles: those of :func:`dem.contact.loops.stepper`, the
+        shape contact state ``sstate`` (:class:`~dem.state.ShapePairState`) and
+        ``swstate`` (:class:`~dem.state.ShapeWallState`), ``detection``
+        (:class:`Detection`), ``part_arrays`` (:class:`PartArrays`), and the buckets of
+        the pairs ``pindex`` and of the wall pairs ``windex`` (:class:`BucketIndex`)."""
+        dt, gravity, damping, skin, overlap_limit, _, grow = settings
+        (pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass, inv_inertia,
+         is_fixed, normal, mat_id) = body
+        hmat, lgrad, cellref, is_cell = cell
+        pairs, img, wpairs, pos_ref = nbr
+        hist, touch, fpair = pstate
+        whist, wforce, wtorque = wstate
+        warm, iters, pgeom, tpair = sstate
+        wwarm, witers, wgeom = swstate
+        geo, tol, max_iter = detection
+        (has_parts, ebody, eoff, eq, eprad, ekind, eshape, epos, erot, erad,
+         enormal) = part_arrays
+        parts, order, bstart, bmethod, inc_start, inc_list = pindex
+        wparts, worder, wbstart, wbmethod, winc_start, winc_list = windex
         n = pos.shape[0]
         status_out[0] = OK
         status_out[3] = 0

@@ -157,18 +157,20 @@ def _bodies_line(sim):
 def _open_writer(path, output, overwrite):
     """The HDF5 observer writing to ``path``, or None where no writer is available.
 
-    Refuses (FileExistsError) to replace an existing HDF5 or XDMF file unless
-    ``overwrite``.
+    Refuses (FileExistsError) to replace an existing HDF5 or XDMF file (the
+    particles' or a companion, :func:`dem.io.xdmf.xdmf_files`) unless ``overwrite``.
     """
-    existing = [p for p in (path, path.with_suffix(".xdmf")) if p.exists()]
-    if existing and not overwrite:
-        raise FileExistsError(f"output file {existing[0]} exists; pass --overwrite to "
-                              f"replace it or choose another directory with --output")
     try:
         from .io.hdf5 import H5Writer
+        from .io.xdmf import xdmf_files
     except ImportError as exc:
         log.warning("HDF5 output disabled, the writer is not available: %s", exc)
         return None
+    xdmf = [Path(p) for p in xdmf_files(path.with_suffix(".xdmf")).values()]
+    existing = [p for p in (path, *xdmf) if p.exists()]
+    if existing and not overwrite:
+        raise FileExistsError(f"output file {existing[0]} exists; pass --overwrite to "
+                              f"replace it or choose another directory with --output")
     path.parent.mkdir(parents=True, exist_ok=True)
     for p in existing:
         p.unlink()

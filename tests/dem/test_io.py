@@ -235,13 +235,19 @@ def test_xdmf_references_existing_datasets(written):
             assert f[dset].shape == shape, dset
             n_refs += 1
     assert n_refs >= 4 * len(grids)
+    names = {"id", "kind", "radius", "vel", "force", "ang_vel", "quat"}
     for g in grids:
         assert g.find("Topology").get("TopologyType") == "Polyvertex"
-        assert g.find("Geometry").get("GeometryType") == ("XYZ" if dim == 3 else "XY")
-        names = {a.get("Name"): a for a in g.findall("Attribute")}
-        assert set(names) == {"radius", "vel", "force"}
-        vec = names["vel"].find("DataItem")
-        assert vec.get("Dimensions").split()[-1] == "3"  # 2D vectors are padded
+        assert g.find("Geometry").get("GeometryType") == "XYZ"  # 2D: padded points
+        attrs = {a.get("Name"): a for a in g.findall("Attribute")}
+        assert set(attrs) == (names | {"angle"} if dim == 2 else names)
+        for vec in ("vel", "force"):
+            assert attrs[vec].get("AttributeType") == "Vector"
+            assert attrs[vec].find("DataItem").get("Dimensions").split()[-1] == "3"
+    text = open(out.xdmf_path).read()
+    assert 'Version="3.0"' in text and "Function" not in text and "HyperSlab" not in text
+    assert sorted(out.xdmf_paths) == sorted(
+        p for k, p in dem.io.xdmf.xdmf_files(out.xdmf_path).items() if k != "shapes")
 
 
 def test_writer_context_manager_publishes_on_error(tmp_path):

@@ -64,7 +64,8 @@ def assert_readers_agree(path, tmp_path, expected, atol=0.0):
     """The XDMF file ``path`` read by both meshio readers equals ``expected``: a list
     (one per step) of dicts with ``time``, ``points`` (to ``atol`` [m]: points derived
     by the writer in another order of operations), ``cell_type``, ``cells``,
-    ``point_data`` and ``cell_data`` (every array the step must carry)."""
+    ``point_data`` and ``cell_data`` (every array the step must carry; a point array
+    ``position`` must equal the points)."""
     text = Path(path).read_text()
     assert 'Version="3.0"' in text and "Function" not in text and "HyperSlab" not in text
     points, cells, steps = read_series(path)
@@ -79,14 +80,17 @@ def assert_readers_agree(path, tmp_path, expected, atol=0.0):
         np.testing.assert_allclose(mesh.points, want["points"], rtol=0.0, atol=atol)
         assert [c.type for c in mesh.cells] == [want["cell_type"]]
         np.testing.assert_array_equal(mesh.cells[0].data, want["cells"])
-        for got, name in ((pd, "point_data"), (cd, "cell_data")):
+        for got, name in ((pd, "point_data"), (cd, "cell_data"),
+                          (mesh.point_data, "point_data")):
             assert set(got) == set(want[name]), name
             for key, value in want[name].items():
+                if key == "position":  # the points of this step, read per step
+                    value = want["points"]
+                    np.testing.assert_allclose(got[key], value, rtol=0.0, atol=atol)
+                    continue
+                assert got[key].shape[0] == value.shape[0], key
                 np.testing.assert_array_equal(got[key].reshape(value.shape), value,
                                               err_msg=key)
-                assert got[key].shape[0] == value.shape[0]
-        for key, value in want["point_data"].items():
-            np.testing.assert_array_equal(mesh.point_data[key].reshape(value.shape), value)
 
 
 # ------------------------------------------------------------------ particle frames
@@ -111,7 +115,7 @@ def particles_expected(f):
         data |= {k: v[()] for k, v in g.get("fields", {}).items()}
         out.append({"time": g.attrs["time"], "points": pad(g["pos"]),
                     "cell_type": "vertex", "cells": np.arange(n)[:, None],
-                    "point_data": data, "cell_data": {}})
+                    "point_data": data | {"position": None}, "cell_data": {}})
     return out
 
 
@@ -134,7 +138,7 @@ def contacts_expected(f):
         out.append({"time": g.attrs["time"],
                     "points": pad(np.stack([start, end], axis=1).reshape(2 * k, -1)),
                     "cell_type": "line", "cells": np.arange(2 * k).reshape(k, 2),
-                    "point_data": {},
+                    "point_data": {"position": None},
                     "cell_data": {"normal_force": fn, "tangential_force": pad(ft),
                                   "force": pad(c["force"]), "normal": pad(c["normal"]),
                                   "overlap": c["overlap"], "i": c["i"], "j": c["j"]}})
@@ -164,7 +168,8 @@ def walls_expected(f, walls_file):
         assert np.all(np.linalg.norm(corners - middle[:, None], axis=2) > reach)
         out.append({"time": g.attrs["time"], "points": mesh.points,
                     "cell_type": "quad" if d == 3 else "line",
-                    "cells": np.arange(nw * k).reshape(nw, k), "point_data": {},
+                    "cells": np.arange(nw * k).reshape(nw, k),
+                    "point_data": {"position": None},
                     "cell_data": {"id": w["id"][()], "normal": pad(w["normal"])}})
     return out
 
@@ -177,7 +182,8 @@ def shapes_expected(f):
             continue
         s = g["surface"]
         out.append({"time": g.attrs["time"], "points": s["points"][()],
-                    "cell_type": "triangle", "cells": s["cells"][()], "point_data": {},
+                    "cell_type": "triangle", "cells": s["cells"][()],
+                    "point_data": {"position": None},
                     "cell_data": {"body": s["body"][()], "vel": s["vel"][()]}})
     return out
 

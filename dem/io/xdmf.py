@@ -30,12 +30,14 @@ walls (``run_walls.xdmf``)
     Only when the scene has plane walls: each plane as a square (3D) or a segment (2D)
     around the particles, cell attributes ``id`` (body index) and ``normal``.
 
-Frames with nothing to draw in a collection (no particles, no contacts) are left out
-of it. Every vector is stored with three components (2D files carry zero-padded copies
-under ``xdmf/`` groups), every grid has explicit cells and ``XYZ`` points, and no
-``Function`` or ``HyperSlab`` items are used: ParaView's default reader (Xdmf3) skips
-those. The heavy data stays in the HDF5 file, referenced by a path relative to the XDMF
-file, so the files move together.
+Every grid also carries its points as the node attribute ``position`` [m]: meshio's
+``TimeSeriesReader`` gives the points of the first grid only, and particles move (and
+their number may change). Frames with nothing to draw in a collection (no particles, no
+contacts) are left out of it. Every vector is stored with three components (2D files
+carry zero-padded copies under ``xdmf/`` groups), every grid has explicit cells and
+``XYZ`` points, and no ``Function`` or ``HyperSlab`` items are used: ParaView's default
+reader (Xdmf3) skips those. The heavy data stays in the HDF5 file, referenced by a path
+relative to the XDMF file, so the files move together.
 """
 
 import logging
@@ -86,12 +88,16 @@ class _Grid:
         it.text = f"{self.ref_file}:{path}"
 
     def mesh(self, topology, cells, points):
+        """Cells and points; the points also as the node attribute ``position``, which
+        meshio's ``TimeSeriesReader`` reads per step (its points are the first
+        grid's)."""
         n, k = self.h5[cells].shape
         topo = ET.SubElement(self.grid, "Topology", {
             "TopologyType": topology, "NumberOfElements": str(n),
             "NodesPerElement": str(k)})
         self.item(topo, cells)
         self.item(ET.SubElement(self.grid, "Geometry", {"GeometryType": "XYZ"}), points)
+        self.attribute("position", points)
 
     def attribute(self, name, path, center="Node"):
         """An attribute whose type follows the dataset's shape: (n,) or (n, 1)

@@ -235,7 +235,7 @@ def test_xdmf_references_existing_datasets(written):
             assert f[dset].shape == shape, dset
             n_refs += 1
     assert n_refs >= 4 * len(grids)
-    names = {"id", "kind", "radius", "vel", "force", "ang_vel", "quat"}
+    names = {"position", "id", "kind", "radius", "vel", "force", "ang_vel", "quat"}
     for g in grids:
         assert g.find("Topology").get("TopologyType") == "Polyvertex"
         assert g.find("Geometry").get("GeometryType") == "XYZ"  # 2D: padded points

@@ -242,7 +242,8 @@ def test_xdmf_has_a_shapes_file(written):
         assert float(sg.find("Time").get("Value")) == frame["time"]
         assert float(pg.find("Time").get("Value")) == frame["time"]
         names = {a.get("Name"): a for a in pg.findall("Attribute")}
-        assert set(names) == {"id", "kind", "radius", "vel", "force", "ang_vel", "quat"} \
+        assert set(names) == {"position", "id", "kind", "radius", "vel", "force",
+                              "ang_vel", "quat"} \
             | ({"angle"} if dim == 2 else set())
         assert names["vel"].find("DataItem").get("Dimensions").split()[-1] == "3"
         topo = sg.find("Topology")
@@ -276,6 +277,6 @@ def test_sphere_only_layout_is_unchanged(tmp_path, dim):
     grid = series[0].find("Grid")
     assert grid.find("Topology").get("TopologyType") == "Polyvertex"
     assert {a.get("Name") for a in grid.findall("Attribute")} == {
-        "id", "kind", "radius", "vel", "force", "ang_vel", "quat"} | (
+        "position", "id", "kind", "radius", "vel", "force", "ang_vel", "quat"} | (
         {"angle"} if dim == 2 else set())
     assert check_hdf_items(root, out.xdmf_path, path) > 0

@@ -188,15 +188,18 @@ def _bodies_line(sim):
 def _open_writer(path, output, overwrite):
     """The HDF5 observer writing to ``path``, or None where no writer is available.
 
-    Refuses (FileExistsError) to replace an existing HDF5 or XDMF file unless
-    ``overwrite``.
+    Refuses (FileExistsError) to replace an existing HDF5 or XDMF file (the
+    particles' or a companion, :func:`dem.io.xdmf.xdmf_files`) unless ``overwrite``.
     """
-    existing = refuse_existing((path, path.with_suffix(".xdmf")), overwrite)
+    refuse_existing((path, path.with_suffix(".xdmf")), overwrite)
     try:
         from .io.hdf5 import H5Writer
+        from .io.xdmf import xdmf_files
     except ImportError as exc:
         log.warning("HDF5 output disabled, the writer is not available: %s", exc)
         return None
+    xdmf = [Path(p) for p in xdmf_files(path.with_suffix(".xdmf")).values()]
+    existing = refuse_existing((path, *xdmf), overwrite)
     path.parent.mkdir(parents=True, exist_ok=True)
     for p in existing:
         p.unlink()

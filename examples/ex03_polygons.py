@@ -17,8 +17,9 @@ Claims checked by tests/test_examples.py:
   friction take a sizeable part of it by the end: the law is dissipative;
 - the launched polygon hits the cluster and sets several polygons moving.
 
-Outputs: ``output/ex03/polygons.h5`` + ``.xdmf`` (ParaView: the "shapes" grid shows
-the polygons); run as a script it also writes ``docs/figures/ex03_polygons.png`` (start
+Outputs: ``output/ex03/polygons.h5`` + ``.xdmf`` (ParaView:
+``polygons_shapes.xdmf`` shows the polygons, ``polygons_contacts.xdmf`` the contact
+forces); run as a script it also writes ``docs/figures/ex03_polygons.png`` (start
 and end, and the energy budget).
 
 Small size: 12 polygons in the cluster, 1.5 s; ``EXAMPLES_SIZE=full``: 60 polygons, 4 s.

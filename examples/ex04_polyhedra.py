@@ -26,8 +26,8 @@ tilt out of the plane (``off_plane``: the largest z, v_z or tilting spin, 0.1 at
 small size), and as they tilt the point can jump from bottom to top, and the torque
 with it: the integrator makes an O(dt) energy error there (the energy rise above).
 
-Outputs: ``output/ex04/polyhedra.h5`` + ``.xdmf`` for ParaView (the "shapes" grid holds
-the prisms' surfaces); run as a script it also writes ``docs/figures/ex04_energy.png``.
+Outputs: ``output/ex04/polyhedra.h5`` + ``.xdmf`` for ParaView (``polyhedra_shapes.xdmf``
+holds the prisms' surfaces); run as a script it also writes ``docs/figures/ex04_energy.png``.
 
 Small size: 12 prisms in the cluster, 1.5 s; ``EXAMPLES_SIZE=full``: 60 prisms, 4 s.
 """

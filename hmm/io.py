@@ -336,7 +336,7 @@ class Output:
         n_pts = macro.mesh.p.shape[1]
         cells = macro.mesh.t.shape
         h5 = self.path.name
-        root = ET.Element("Xdmf", {"Version": "2.0"})
+        root = ET.Element("Xdmf", {"Version": "3.0"})
         dom = ET.SubElement(root, "Domain")
         coll = ET.SubElement(dom, "Grid", {"Name": "steps", "GridType": "Collection",
                                            "CollectionType": "Temporal"})
@@ -350,7 +350,7 @@ class Output:
         topology = next(kind for cls, kind in _TOPOLOGY if isinstance(macro.mesh, cls))
         for name, t in self.frames:
             grid = ET.SubElement(coll, "Grid", {"Name": name, "GridType": "Uniform"})
-            ET.SubElement(grid, "Time", {"Value": f"{t:.10g}"})
+            ET.SubElement(grid, "Time", {"Value": repr(float(t))})
             topo = ET.SubElement(grid, "Topology", {
                 "TopologyType": topology,
                 "NumberOfElements": str(cells[1])})

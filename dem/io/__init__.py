@@ -1,7 +1,8 @@
 """Output and restart: HDF5 time series with XDMF side files, checkpoints, dumps.
 
-- :class:`H5Writer`: observer writing particle frames and contacts to HDF5, with an
-  XDMF file for ParaView (:func:`write_xdmf`); :func:`read_frame` reads one back;
+- :class:`H5Writer`: observer writing particle frames and contacts to HDF5, with
+  XDMF 3 files (particles, contacts, walls, shapes) that ParaView and meshio open
+  (:func:`write_xdmf`); :func:`read_frame` reads one frame back;
 - :func:`save_checkpoint` / :func:`load_checkpoint`: the full simulation state, so a
   restarted run continues bit for bit;
 - :func:`write_last_good_state`: a :meth:`~dem.Simulation.on_failure` hook saving the

@@ -1,4 +1,5 @@
-"""Time series of a simulation in HDF5 (h5py), with an XDMF side file for ParaView.
+"""Time series of a simulation in HDF5 (h5py), with XDMF side files for ParaView and
+meshio (:mod:`dem.io.xdmf`).
 
 :class:`H5Writer` is an observer: whenever its trigger fires it appends one frame.
 
@@ -37,10 +38,28 @@ shapes alike), in body order::
             normal   (nc, d) float64 unit normal from i to j
             overlap  (nc,)   float64 [m], > 0
             force    (nc, d) float64 force on j [N]
+            normal_force      (nc,)   float64 [N], ``force . normal``: > 0 pushes
+                                       the two apart
+            tangential_force  (nc, d) float64 [N], ``force - normal_force * normal``
             x1, x2   (nc, d) float64 [m], points of i and j deepest into the other
             is_wall  (nc,)   bool
-    /xdmf/zeros  (n_max, 1) float64, 2D files only: the zero third component that
-                 the XDMF file joins to 2D vectors (ParaView draws only 3-vectors)
+            xdmf/    the contact network as line cells, one line per contact from
+                     the centre of i to the centre of j (its periodic image) or,
+                     for a wall contact, to the contact point:
+                points (2 nc, 3) float64 [m] (rows 2k, 2k + 1: the ends of line k),
+                lines (nc, 2) int32; 2D: force, normal, tangential_force (nc, 3)
+                padded with a zero z component
+        xdmf/      what the XDMF files read besides the datasets above:
+            vertex   (n, 1)  int32    0, 1, ..., n - 1: the particles as vertex cells
+            pos, vel, force (n, 3) float64, 2D only: padded with z = 0
+            quat     (n, 4)  float64, 2D only: the angle as a quaternion about z
+                                      (w, x, y, z), for glyph orientation
+        walls/xdmf/  the wall planes drawn as finite patches: points (4 nw, 3) [m] and
+                     cells (nw, 4) int32 (3D quadrilaterals), or points (2 nw, 3)
+                     and cells (nw, 2) (2D segments); centred on the particles'
+                     centroid projected onto the plane, as wide as the particles'
+                     extent (plus two radii) in every direction of the plane;
+                     normal (nw, 3)
 
 Custom shapes (a user SDF) have no vertices: they appear as particles only (a glyph at
 ``pos`` of size ``radius`` in ParaView), never in ``surface/``.
@@ -65,7 +84,8 @@ from ..shapes import Shape
 log = logging.getLogger(__name__)
 
 FORMAT = "dem.h5writer"
-VERSION = 2  # 2: frames hold every particle (kind, surface/), not spheres only
+VERSION = 3  # 2: frames hold every particle (kind, surface/), not spheres only;
+#               3: padded 3-vectors and cells for XDMF 3 in each frame (xdmf/ groups)
 
 
 #: the most a stored dataset may inflate when read: deflate's limit is about 1032:1
@@ -120,6 +140,68 @@ def frame_name(index):
     '000007'
     """
     return f"{int(index):06d}"
+
+
+def pad3(a):
+    """``(n, d)`` float rows as ``(n, 3)`` float64, trailing components zero.
+
+    >>> pad3(np.array([[1.0, 2.0]]))
+    array([[1., 2., 0.]])
+    """
+    a = np.asarray(a, dtype=np.float64)
+    out = np.zeros((a.shape[0], 3))
+    out[:, :a.shape[1]] = a
+    return out
+
+
+def angle_quaternion(angle):
+    """Angles [rad] about z, shape ``(n,)`` or ``(n, 1)``, as ``(n, 4)`` quaternions
+    ``(w, x, y, z)``: the orientation of 2D bodies in the form glyphs take.
+
+    >>> angle_quaternion(np.array([[np.pi]])).round(12) + 0.0
+    array([[0., 0., 0., 1.]])
+    """
+    half = 0.5 * np.asarray(angle, dtype=np.float64).reshape(-1)
+    q = np.zeros((half.size, 4))
+    q[:, 0], q[:, 3] = np.cos(half), np.sin(half)
+    return q
+
+
+def wall_patches(wall_pos, wall_normal, centre, half):
+    """Planes drawn as finite patches for viewers.
+
+    Each plane (a point ``wall_pos`` and a normal ``wall_normal``, ``(nw, d)`` [m]
+    and [-]) becomes a square of half-width ``half`` [m] (3D; corners counter-clockwise
+    seen from the side the normal points to) or a segment of half-length ``half``
+    (2D), centred on the projection of ``centre`` (d,) [m] onto the plane.
+
+    Returns
+    -------
+    points : (4 nw, 3) or (2 nw, 3) float64 [m]
+    cells : (nw, 4) or (nw, 2) int32, rows of ``points``
+
+    >>> p, c = wall_patches(np.zeros((1, 2)), np.array([[0.0, 1.0]]), np.ones(2), 0.5)
+    >>> p.tolist(), c.tolist()
+    ([[1.5, 0.0, 0.0], [0.5, 0.0, 0.0]], [[0, 1]])
+    """
+    wall_pos = np.asarray(wall_pos, dtype=np.float64)
+    nw, d = wall_pos.shape
+    n = np.asarray(wall_normal, dtype=np.float64)
+    n = n / np.linalg.norm(n, axis=1, keepdims=True)
+    foot = centre - np.einsum("wi,wi->w", centre - wall_pos, n)[:, None] * n
+    if d == 2:
+        t = np.stack([-n[:, 1], n[:, 0]], axis=1)
+        corners = np.stack([foot - half * t, foot + half * t], axis=1)
+    else:
+        axis = np.eye(3)[np.argmin(np.abs(n), axis=1)]  # the axis least along n
+        t1 = np.cross(n, axis)
+        t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+        t2 = np.cross(n, t1)  # (t1, t2, n) right-handed
+        corners = np.stack([foot + half * (s1 * t1 + s2 * t2) for s1, s2 in
+                            ((-1, -1), (1, -1), (1, 1), (-1, 1))], axis=1)
+    k = corners.shape[1]
+    cells = np.arange(nw * k, dtype=np.int32).reshape(nw, k)
+    return pad3(corners.reshape(nw * k, d)), cells
 
 
 #: shape kinds drawn as surfaces: those whose shape-table row holds vertices
@@ -202,14 +284,16 @@ class H5Writer:
     """Observer writing particle frames (and contacts) to an HDF5 file.
 
     Every body but the walls is a particle; boxes, polygons and polyhedra also get
-    their world-frame surfaces as triangles (:func:`shape_surfaces`), which the XDMF
-    file shows as a second grid, ``shapes``.
+    their world-frame surfaces as triangles (:func:`shape_surfaces`), shown by their
+    own XDMF file (``<stem>_shapes.xdmf``), as are the contacts (``_contacts``) and
+    the walls (``_walls``); see :mod:`dem.io.xdmf`.
 
     Parameters
     ----------
     path : str or os.PathLike
-        The HDF5 file; written as ``path + ".tmp"`` until :meth:`close`. The XDMF side
-        file is ``path`` with the suffix ``.xdmf``.
+        The HDF5 file; written as ``path + ".tmp"`` until :meth:`close`. The XDMF file
+        of the particles is ``path`` with the suffix ``.xdmf``
+        (:attr:`xdmf_path`); :attr:`xdmf_paths` lists every XDMF file written.
     every : int or trigger
         Write a frame every ``every`` steps (or when a trigger with ``next_after``
         fires). The simulation calls observers after steps only: call the writer
@@ -218,7 +302,7 @@ class H5Writer:
         Also write the touching contacts of every frame.
     fields : dict, optional
         Extra per-body scalars, ``{name: fn(sim) -> (n,) array}``, written with every
-        frame and shown by the XDMF file as particle attributes (e.g. peridynamic
+        frame and shown by the particles' XDMF file as attributes (e.g. peridynamic
         damage).
 
     Examples
@@ -243,8 +327,9 @@ class H5Writer:
         self.trigger = every if hasattr(every, "next_after") else Periodic(every)
         self.contacts = bool(contacts)
         self.n_frames = 0
+        #: the XDMF files written by :meth:`close` (particles first)
+        self.xdmf_paths = []
         self._dim = None
-        self._n_max = 0
         parent = os.path.dirname(os.path.abspath(self.path))
         os.makedirs(parent, exist_ok=True)
         self._file = h5py.File(self.tmp_path, "w")
@@ -290,6 +375,7 @@ class H5Writer:
         w.create_dataset("id", data=wal.astype(np.int32))
         w.create_dataset("pos", data=b.pos[wal])
         w.create_dataset("normal", data=b.normal[wal])
+        self._write_viewer_data(g, b, par, wal)
         surf = shape_surfaces(b)
         if surf["cells"].shape[0]:
             s = g.create_group("surface")
@@ -298,20 +384,63 @@ class H5Writer:
         g.attrs["n_surface_cells"] = surf["cells"].shape[0]
         n_c = 0
         if self.contacts:
-            n_c = self._write_contacts(g.create_group("contacts"), sim.contacts())
+            n_c = self._write_contacts(g.create_group("contacts"), sim.contacts(), b)
         g.attrs["n_contacts"] = n_c
-        self._n_max = max(self._n_max, par.size)
         self.n_frames += 1
         self._file.flush()
 
     @staticmethod
-    def _write_contacts(g, c):
-        g.create_dataset("i", data=np.asarray(c["i"], dtype=np.int32))
+    def _write_viewer_data(g, b, par, wal):
+        """The ``xdmf/`` groups of frame ``g``: vertex cells, 3-vectors (2D) and the
+        walls as patches."""
+        x = g.create_group("xdmf")
+        x.create_dataset("vertex", data=np.arange(par.size, dtype=np.int32)[:, None])
+        if b.dim == 2:
+            for name in ("pos", "vel", "force"):
+                x.create_dataset(name, data=pad3(getattr(b, name)[par]))
+            x.create_dataset("quat", data=angle_quaternion(b.rot[par]))
+        if not wal.size:
+            return
+        if par.size:
+            centre = b.pos[par].mean(axis=0)
+            half = 0.5 * np.ptp(b.pos[par], axis=0).max() + 2.0 * b.radius[par].max()
+        else:  # no particles to frame: the walls' own extent, or a metre
+            centre = b.pos[wal].mean(axis=0)
+            half = 0.5 * np.ptp(b.pos[wal], axis=0).max() or 1.0
+        points, cells = wall_patches(b.pos[wal], b.normal[wal], centre, half)
+        w = g["walls"].create_group("xdmf")
+        w.create_dataset("points", data=points)
+        w.create_dataset("cells", data=cells)
+        w.create_dataset("normal", data=pad3(b.normal[wal]))
+
+    @staticmethod
+    def _write_contacts(g, c, b):
+        i = np.asarray(c["i"], dtype=np.int32)
+        is_wall = np.asarray(c["is_wall"], dtype=bool)
+        g.create_dataset("i", data=i)
         g.create_dataset("j", data=np.asarray(c["j"], dtype=np.int32))
         for name in ("normal", "overlap", "force", "x1", "x2"):
             g.create_dataset(name, data=np.asarray(c[name], dtype=np.float64))
-        g.create_dataset("is_wall", data=np.asarray(c["is_wall"], dtype=bool))
-        return int(np.asarray(c["i"]).size)
+        g.create_dataset("is_wall", data=is_wall)
+        normal = np.asarray(c["normal"], dtype=np.float64).reshape(i.size, b.dim)
+        force = np.asarray(c["force"], dtype=np.float64).reshape(i.size, b.dim)
+        fn = np.einsum("kd,kd->k", force, normal)
+        ft = force - fn[:, None] * normal
+        g.create_dataset("normal_force", data=fn)
+        g.create_dataset("tangential_force", data=ft)
+        x = g.create_group("xdmf")  # lines i -> j (a wall: i -> the contact point)
+        start = b.pos[i]
+        reach = np.where(is_wall, 0.5, 1.0)[:, None]  # a wall's branch is 2 arms
+        end = start + reach * np.asarray(c["branch"], dtype=np.float64).reshape(start.shape)
+        x.create_dataset("points", data=pad3(np.stack([start, end], axis=1)
+                                             .reshape(2 * i.size, b.dim)))
+        x.create_dataset("lines", data=np.arange(2 * i.size, dtype=np.int32)
+                         .reshape(i.size, 2))
+        if b.dim == 2:
+            for name, data in (("force", force), ("normal", normal),
+                               ("tangential_force", ft)):
+                x.create_dataset(name, data=pad3(data))
+        return int(i.size)
 
     # ------------------------------------------------------------------ closing
     def close(self):
@@ -324,17 +453,16 @@ class H5Writer:
         f, self._file = self._file, None
         try:
             f.attrs["n_frames"] = self.n_frames
-            if self._dim == 2 and self._n_max:
-                zeros = np.zeros((self._n_max, 1))
-                f.create_group("xdmf").create_dataset("zeros", data=zeros)
         finally:
             f.close()
         publish(self.tmp_path, self.path)
-        from .xdmf import write_xdmf
+        from .xdmf import write_xdmf, xdmf_files
 
         write_xdmf(self.path, self.xdmf_path)
+        self.xdmf_paths = [p for p in xdmf_files(self.xdmf_path).values()
+                           if os.path.exists(p)]
         log.info("wrote %d frames to %s (+ %s)", self.n_frames, self.path,
-                 self.xdmf_path)
+                 ", ".join(self.xdmf_paths))
         return self.path
 
     def __enter__(self):
@@ -349,8 +477,9 @@ def read_frame(path, index):
     """One frame (``index`` 0, 1, ...; negative counts from the end) as a dict.
 
     Keys: the frame's attributes (``step``, ``time``, ``dt``, ...), its particle
-    datasets (``id``, ``kind``, ``pos``, ``vel``, ...), ``walls`` and, when written,
-    ``surface`` and ``contacts`` (dicts of arrays; see the module docstring).
+    datasets (``id``, ``kind``, ``pos``, ``vel``, ...), ``walls``, ``xdmf`` and, when
+    written, ``surface`` and ``contacts`` (dicts of arrays, a subgroup a nested dict;
+    see the module docstring).
     """
     with h5py.File(path, "r") as f:
         if f.attrs.get("format") != FORMAT:
@@ -362,9 +491,11 @@ def read_frame(path, index):
             raise IndexError(f"{path} has {len(frames)} frames, no frame {index}")
         g = frames[frame_name(index)]
         out = {k: v.item() if hasattr(v, "item") else v for k, v in g.attrs.items()}
-        for k, v in g.items():
-            if isinstance(v, h5py.Group):
-                out[k] = {kk: vv[()] for kk, vv in v.items()}
-            else:
-                out[k] = v[()]
+        out.update(_read_group(g))
     return out
+
+
+def _read_group(g):
+    """Datasets of group ``g`` as arrays, its subgroups as nested dicts."""
+    return {k: _read_group(v) if isinstance(v, h5py.Group) else v[()]
+            for k, v in g.items()}

@@ -1,29 +1,43 @@
-"""XDMF (version 2) side files: ParaView or VisIt read :class:`~dem.io.H5Writer` output.
+"""XDMF 3 side files: ParaView (both XDMF readers) and meshio read :class:`~dem.io.H5Writer`
+output.
 
-The domain holds up to two temporal collections, one grid per frame in each:
+One HDF5 file gets up to four XDMF files, each a temporal collection with one grid per
+frame (``run.h5`` -> ``run.xdmf``, ``run_shapes.xdmf``, ``run_contacts.xdmf``,
+``run_walls.xdmf``; see :func:`xdmf_files`). One collection per file because meshio's
+``TimeSeriesReader`` reads a single collection:
 
-``particles``
-    ``Polyvertex`` grids of every particle (every body but the walls): geometry the
-    centres (``XYZ`` in 3D, ``XY`` in 2D, where the reader sets z = 0), node
-    attributes ``radius`` (scalar; the bounding radius of non-spheres), ``vel`` and
-    ``force`` (vectors), and ``kind`` (the :class:`~dem.shapes.Shape` code) when the
-    file holds bodies other than spheres, and every extra per-body scalar the writer
-    was given (``fields/`` of each frame; peridynamic damage, for one). Draw them as
-    sphere glyphs scaled by ``radius``; custom shapes (a user SDF, no vertices) are seen
-    only this way.
-``shapes``
+particles (``run.xdmf``)
+    ``Polyvertex`` grids of every particle (every body but the walls): points the
+    centres, node attributes ``id`` (body index), ``kind`` (the
+    :class:`~dem.shapes.Shape` code), ``radius`` [m] (the bounding radius of
+    non-spheres), ``vel`` [m/s], ``force`` [N], ``ang_vel`` [rad/s] (a 3-vector in
+    3D, a scalar in 2D), ``quat`` (orientation, a quaternion (w, x, y, z); in 2D
+    about z), ``angle`` [rad] (2D only) and every extra per-body scalar the writer was
+    given (``fields/`` of each frame; peridynamic damage, for one). Draw them as glyphs
+    scaled by ``radius`` and oriented by ``quat``; custom shapes (a user SDF, no
+    vertices) are seen only this way.
+shapes (``run_shapes.xdmf``)
     Only when some frame holds boxes, polygons or polyhedra: ``Triangle`` grids of
     their world-frame surfaces (``surface/`` of each frame), cell attributes ``body``
-    (body index, scalar) and ``vel`` (vector). 2D shapes are flat, in the z = 0 plane.
-    Frames without such shapes are left out of this collection.
+    (body index) and ``vel`` [m/s]. 2D shapes are flat, in the z = 0 plane.
+contacts (``run_contacts.xdmf``)
+    Only when contacts were written: ``Polyline`` grids, one line per touching
+    contact from the centre of ``i`` to the centre of ``j`` (a wall contact: to the
+    contact point), cell attributes ``normal_force`` [N] (> 0 pushes apart),
+    ``tangential_force`` [N], ``force`` [N] (on ``j``), ``normal``, ``overlap`` [m],
+    ``i`` and ``j``. Coloured and scaled by ``normal_force`` they show force chains.
+walls (``run_walls.xdmf``)
+    Only when the scene has plane walls: each plane as a square (3D) or a segment (2D)
+    around the particles, cell attributes ``id`` (body index) and ``normal``.
 
-The heavy data stays in the HDF5 file, referenced by a path relative to the XDMF file,
-so the two files move together.
-
-ParaView takes only 3-component arrays as vectors (glyph orientation), so in 2D each
-particle vector is built as ``JOIN`` of its two columns (hyperslabs of the HDF5
-dataset) and a zero column (``/xdmf/zeros``), as PyLith does; surface data is stored
-with three columns already.
+Every grid also carries its points as the node attribute ``position`` [m]: meshio's
+``TimeSeriesReader`` gives the points of the first grid only, and particles move (and
+their number may change). Frames with nothing to draw in a collection (no particles, no
+contacts) are left out of it. Every vector is stored with three components (2D files
+carry zero-padded copies under ``xdmf/`` groups), every grid has explicit cells and
+``XYZ`` points, and no ``Function`` or ``HyperSlab`` items are used: ParaView's default
+reader (Xdmf3) skips those. The heavy data stays in the HDF5 file, referenced by a path
+relative to the XDMF file, so the files move together.
 """
 
 import logging
@@ -34,139 +48,182 @@ import h5py
 
 log = logging.getLogger(__name__)
 
-ATTRIBUTES = (("radius", "Scalar"), ("vel", "Vector"), ("force", "Vector"))
+#: the collections, each in its own file: name -> suffix added to the stem
+COLLECTIONS = {"particles": "", "shapes": "_shapes", "contacts": "_contacts",
+               "walls": "_walls"}
 
 
-def _data_item(parent, ref, shape, number_type="Float", precision=8):
-    item = ET.SubElement(parent, "DataItem", {
-        "Dimensions": " ".join(str(s) for s in shape), "NumberType": number_type,
-        "Precision": str(precision), "Format": "HDF"})
-    item.text = ref
-    return item
+def xdmf_files(xdmf_path):
+    """The XDMF files of one output: ``{collection: path}``, the particles' file
+    ``xdmf_path`` and its companions next to it.
+
+    >>> xdmf_files("out/run.xdmf")["contacts"]
+    'out/run_contacts.xdmf'
+    """
+    stem, ext = os.path.splitext(os.fspath(xdmf_path))
+    return {name: f"{stem}{suffix}{ext or '.xdmf'}" for name, suffix in COLLECTIONS.items()}
 
 
-def _column(parent, ref, n, shape, col):
-    """Hyperslab: rows ``0:n`` of column ``col`` of the dataset ``ref`` of ``shape``."""
-    slab = ET.SubElement(parent, "DataItem", {
-        "ItemType": "HyperSlab", "Dimensions": f"{n} 1", "Type": "HyperSlab"})
-    sel = ET.SubElement(slab, "DataItem", {"Dimensions": "3 2", "Format": "XML"})
-    sel.text = f"0 {col} 1 1 {n} 1"  # start, stride, count
-    _data_item(slab, ref, shape)
-    return slab
+def _number_type(dtype):
+    kind = {"i": "Int", "u": "UInt", "f": "Float"}[dtype.kind]
+    return kind, str(dtype.itemsize)
 
 
-def _vector_2d(parent, ref, zeros_ref, n, n_zeros):
-    join = ET.SubElement(parent, "DataItem", {
-        "ItemType": "Function", "Function": "JOIN($0, $1, $2)", "Dimensions": f"{n} 3"})
-    _column(join, ref, n, (n, 2), 0)
-    _column(join, ref, n, (n, 2), 1)
-    _column(join, zeros_ref, n, (n_zeros, 1), 0)
-    return join
+class _Grid:
+    """One uniform grid of a temporal collection, its items referring to the
+    datasets of one HDF5 file."""
 
+    def __init__(self, series, name, time, h5, ref_file):
+        self.h5, self.ref_file = h5, ref_file
+        self.grid = ET.SubElement(series, "Grid", {"Name": name, "GridType": "Uniform"})
+        ET.SubElement(self.grid, "Time", {"Value": repr(float(time))})
 
-def _has_non_spheres(g):
-    """Whether frame ``g`` holds particles other than spheres."""
-    return int(g.attrs.get("n_particles", 0)) > int(g.attrs["n_spheres"])
+    def item(self, parent, path):
+        """A DataItem for the whole dataset ``path`` of the HDF5 file."""
+        dset = self.h5[path]
+        kind, precision = _number_type(dset.dtype)
+        it = ET.SubElement(parent, "DataItem", {
+            "Dimensions": " ".join(str(s) for s in dset.shape), "NumberType": kind,
+            "Precision": precision, "Format": "HDF"})
+        it.text = f"{self.ref_file}:{path}"
 
+    def mesh(self, topology, cells, points):
+        """Cells and points; the points also as the node attribute ``position``, which
+        meshio's ``TimeSeriesReader`` reads per step (its points are the first
+        grid's)."""
+        n, k = self.h5[cells].shape
+        topo = ET.SubElement(self.grid, "Topology", {
+            "TopologyType": topology, "NumberOfElements": str(n),
+            "NodesPerElement": str(k)})
+        self.item(topo, cells)
+        self.item(ET.SubElement(self.grid, "Geometry", {"GeometryType": "XYZ"}), points)
+        self.attribute("position", points)
 
-def _particle_grid(series, g, name, base, ref_file, zeros, with_kind):
-    n, d = g["pos"].shape
-    grid = ET.SubElement(series, "Grid", {"Name": f"frame_{name}",
-                                          "GridType": "Uniform"})
-    ET.SubElement(grid, "Time", {"Value": repr(float(g.attrs["time"]))})
-    ET.SubElement(grid, "Topology", {"TopologyType": "Polyvertex",
-                                     "NumberOfElements": str(n),
-                                     "NodesPerElement": "1"})
-    geom = ET.SubElement(grid, "Geometry",
-                         {"GeometryType": "XYZ" if d == 3 else "XY"})
-    _data_item(geom, f"{base}/pos", (n, d))
-    for attr, kind in ATTRIBUTES:
-        a = ET.SubElement(grid, "Attribute", {
-            "Name": attr, "AttributeType": kind, "Center": "Node"})
-        if kind == "Vector" and d == 2 and zeros is not None:
-            _vector_2d(a, f"{base}/{attr}", f"{ref_file}:/xdmf/zeros", n,
-                       zeros.shape[0])
+    def attribute(self, name, path, center="Node"):
+        """An attribute whose type follows the dataset's shape: (n,) or (n, 1)
+        scalar, (n, 3) vector, anything else a matrix (a quaternion)."""
+        shape = self.h5[path].shape
+        if len(shape) == 1 or shape[1] == 1:
+            kind = "Scalar"
         else:
-            _data_item(a, f"{base}/{attr}", g[attr].shape)
+            kind = "Vector" if shape[1] == 3 else "Matrix"
+        a = ET.SubElement(self.grid, "Attribute", {
+            "Name": name, "AttributeType": kind, "Center": center})
+        self.item(a, path)
+
+
+def _particles(series, g, name, base, h5, ref_file):
+    d = g["pos"].shape[1]
+    padded = f"{base}/xdmf" if d == 2 else base  # 3-vectors: padded copies in 2D
+    grid = _Grid(series, f"frame_{name}", g.attrs["time"], h5, ref_file)
+    grid.mesh("Polyvertex", f"{base}/xdmf/vertex", f"{padded}/pos")
+    for attr in ("id", "kind", "radius"):
+        grid.attribute(attr, f"{base}/{attr}")
+    for attr in ("vel", "force"):
+        grid.attribute(attr, f"{padded}/{attr}")
+    grid.attribute("ang_vel", f"{base}/ang_vel")
+    grid.attribute("quat", f"{padded}/quat" if d == 2 else f"{base}/rot")
+    if d == 2:
+        grid.attribute("angle", f"{base}/rot")
     for field in g.get("fields", {}):
-        a = ET.SubElement(grid, "Attribute", {
-            "Name": field, "AttributeType": "Scalar", "Center": "Node"})
-        _data_item(a, f"{base}/fields/{field}", (n,))
-    if with_kind and "kind" in g:
-        a = ET.SubElement(grid, "Attribute", {
-            "Name": "kind", "AttributeType": "Scalar", "Center": "Node"})
-        _data_item(a, f"{base}/kind", (n,), "Int", 4)
+        grid.attribute(field, f"{base}/fields/{field}")
 
 
-def _surface_grid(series, g, name, base):
-    s = g["surface"]
-    n_p, n_t = s["points"].shape[0], s["cells"].shape[0]
-    grid = ET.SubElement(series, "Grid", {"Name": f"shapes_{name}",
-                                          "GridType": "Uniform"})
-    ET.SubElement(grid, "Time", {"Value": repr(float(g.attrs["time"]))})
-    topo = ET.SubElement(grid, "Topology", {"TopologyType": "Triangle",
-                                            "NumberOfElements": str(n_t),
-                                            "NodesPerElement": "3"})
-    _data_item(topo, f"{base}/surface/cells", (n_t, 3), "Int", 4)
-    geom = ET.SubElement(grid, "Geometry", {"GeometryType": "XYZ"})
-    _data_item(geom, f"{base}/surface/points", (n_p, 3))
-    a = ET.SubElement(grid, "Attribute", {
-        "Name": "body", "AttributeType": "Scalar", "Center": "Cell"})
-    _data_item(a, f"{base}/surface/body", (n_t,), "Int", 4)
-    a = ET.SubElement(grid, "Attribute", {
-        "Name": "vel", "AttributeType": "Vector", "Center": "Cell"})
-    _data_item(a, f"{base}/surface/vel", (n_t, 3))
+def _shapes(series, g, name, base, h5, ref_file):
+    grid = _Grid(series, f"shapes_{name}", g.attrs["time"], h5, ref_file)
+    grid.mesh("Triangle", f"{base}/surface/cells", f"{base}/surface/points")
+    for attr in ("body", "vel"):
+        grid.attribute(attr, f"{base}/surface/{attr}", "Cell")
+
+
+def _contacts(series, g, name, base, h5, ref_file):
+    c = f"{base}/contacts"
+    padded = f"{c}/xdmf" if g["pos"].shape[1] == 2 else c
+    grid = _Grid(series, f"contacts_{name}", g.attrs["time"], h5, ref_file)
+    grid.mesh("Polyline", f"{c}/xdmf/lines", f"{c}/xdmf/points")
+    for attr in ("normal_force", "overlap", "i", "j"):
+        grid.attribute(attr, f"{c}/{attr}", "Cell")
+    for attr in ("tangential_force", "force", "normal"):
+        grid.attribute(attr, f"{padded}/{attr}", "Cell")
+
+
+def _walls(series, g, name, base, h5, ref_file):
+    w = f"{base}/walls"
+    grid = _Grid(series, f"walls_{name}", g.attrs["time"], h5, ref_file)
+    topology = "Quadrilateral" if g["pos"].shape[1] == 3 else "Polyline"
+    grid.mesh(topology, f"{w}/xdmf/cells", f"{w}/xdmf/points")
+    grid.attribute("id", f"{w}/id", "Cell")
+    grid.attribute("normal", f"{w}/xdmf/normal", "Cell")
+
+
+#: collection -> (frame holds something to draw, grid builder)
+_BUILDERS = {
+    "particles": (lambda g: g["pos"].shape[0] > 0, _particles),
+    "shapes": (lambda g: "surface" in g, _shapes),
+    "contacts": (lambda g: int(g.attrs.get("n_contacts", 0)) > 0
+                 and "xdmf" in g.get("contacts", {}), _contacts),
+    "walls": (lambda g: "xdmf" in g["walls"], _walls),
+}
+
+
+def _write(root, path):
+    ET.indent(root)
+    tmp = path + ".tmp"
+    with open(tmp, "w", encoding="utf-8") as fh:
+        fh.write('<?xml version="1.0" ?>\n')
+        fh.write(ET.tostring(root, encoding="unicode"))
+        fh.write("\n")
+    os.replace(tmp, path)
 
 
 def write_xdmf(h5_path, xdmf_path=None):
-    """Write the XDMF file describing the frames of an :class:`~dem.io.H5Writer` file.
+    """Write the XDMF files describing the frames of an :class:`~dem.io.H5Writer` file.
+
+    The particles go to ``xdmf_path``, the shapes, contacts and walls (where the file
+    has any) to its companions (:func:`xdmf_files`); a companion left from an earlier
+    file of that name is removed.
 
     Parameters
     ----------
     h5_path : str or os.PathLike
-        A finished HDF5 file (see :mod:`dem.io.hdf5` for its layout).
+        A finished HDF5 file of format version 3 or later (see :mod:`dem.io.hdf5`).
     xdmf_path : str or os.PathLike, optional
-        Output path; default ``h5_path`` with the suffix ``.xdmf``.
+        Output path of the particles' file; default ``h5_path`` with the suffix
+        ``.xdmf``.
 
     Returns
     -------
     str
-        The path written (atomically: a temporary file renamed into place).
+        The particles' path. Files are written atomically (a temporary file renamed
+        into place).
     """
+    from .hdf5 import FORMAT
+
     h5_path = os.fspath(h5_path)
     if xdmf_path is None:
         xdmf_path = os.path.splitext(h5_path)[0] + ".xdmf"
     xdmf_path = os.fspath(xdmf_path)
     ref_file = os.path.relpath(os.path.abspath(h5_path),
                                os.path.dirname(os.path.abspath(xdmf_path)))
-    root = ET.Element("Xdmf", {"Version": "2.0"})
-    domain = ET.SubElement(root, "Domain")
-    particles = ET.SubElement(domain, "Grid", {
-        "Name": "particles", "GridType": "Collection", "CollectionType": "Temporal"})
-    with h5py.File(h5_path, "r") as f:
-        frames = f["frames"]
-        zeros = f.get("xdmf/zeros")
+    paths = xdmf_files(xdmf_path)
+    with h5py.File(h5_path, "r") as h5:
+        version = h5.attrs.get("version", 0)
+        if h5.attrs.get("format") != FORMAT or version < 3:
+            raise ValueError(f"{h5_path}: not a {FORMAT} file of version 3 or later "
+                             f"(format {h5.attrs.get('format')!r}, version {version})")
+        frames = h5["frames"]
         names = sorted(frames, key=int)
-        with_kind = any(_has_non_spheres(frames[k]) for k in names)
-        for name in names:
-            g = frames[name]
-            if g["pos"].shape[0] == 0:
-                log.debug("frame %s has no particles: left out of %s", name, xdmf_path)
+        for coll, (has, build) in _BUILDERS.items():
+            drawn = [k for k in names if has(frames[k])]
+            if not drawn and coll != "particles":
+                if os.path.exists(paths[coll]):
+                    os.remove(paths[coll])  # describes a file that is gone
                 continue
-            _particle_grid(particles, g, name, f"{ref_file}:/frames/{name}", ref_file,
-                           zeros, with_kind)
-        surfaced = [k for k in names if "surface" in frames[k]]
-        if surfaced:
-            shapes = ET.SubElement(domain, "Grid", {"Name": "shapes",
-                                                    "GridType": "Collection",
-                                                    "CollectionType": "Temporal"})
-            for name in surfaced:
-                _surface_grid(shapes, frames[name], name, f"{ref_file}:/frames/{name}")
-    ET.indent(root)
-    tmp = xdmf_path + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write('<?xml version="1.0" ?>\n')
-        fh.write(ET.tostring(root, encoding="unicode"))
-        fh.write("\n")
-    os.replace(tmp, xdmf_path)
+            root = ET.Element("Xdmf", {"Version": "3.0"})
+            series = ET.SubElement(ET.SubElement(root, "Domain"), "Grid", {
+                "Name": coll, "GridType": "Collection", "CollectionType": "Temporal"})
+            for name in drawn:
+                build(series, frames[name], name, f"/frames/{name}", h5, ref_file)
+            _write(root, paths[coll])
+            log.debug("wrote %s (%d of %d frames)", paths[coll], len(drawn), len(names))
     return xdmf_path

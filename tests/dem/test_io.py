@@ -231,13 +231,59 @@ def test_xdmf_references_existing_datasets(written):
             assert f[dset].shape == shape, dset
             n_refs += 1
     assert n_refs >= 4 * len(grids)
+    names = {"position", "id", "kind", "radius", "vel", "force", "ang_vel", "quat"}
     for g in grids:
         assert g.find("Topology").get("TopologyType") == "Polyvertex"
-        assert g.find("Geometry").get("GeometryType") == ("XYZ" if dim == 3 else "XY")
-        names = {a.get("Name"): a for a in g.findall("Attribute")}
-        assert set(names) == {"radius", "vel", "force"}
-        vec = names["vel"].find("DataItem")
-        assert vec.get("Dimensions").split()[-1] == "3"  # 2D vectors are padded
+        assert g.find("Geometry").get("GeometryType") == "XYZ"  # 2D: padded points
+        attrs = {a.get("Name"): a for a in g.findall("Attribute")}
+        assert set(attrs) == (names | {"angle"} if dim == 2 else names)
+        for vec in ("vel", "force"):
+            assert attrs[vec].get("AttributeType") == "Vector"
+            assert attrs[vec].find("DataItem").get("Dimensions").split()[-1] == "3"
+    text = open(out.xdmf_path).read()
+    assert 'Version="3.0"' in text and "Function" not in text and "HyperSlab" not in text
+    assert sorted(out.xdmf_paths) == sorted(
+        p for k, p in dem.io.xdmf.xdmf_files(out.xdmf_path).items() if k != "shapes")
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_contact_lines_join_the_centres_across_periodic_sides(tmp_path, dim):
+    """A contact across a periodic side is drawn to the neighbour's image: no line is
+    longer than the two radii; a wall contact ends at its contact point."""
+    sim = make_sim(dim, periodic=True)
+    sim.run(400)
+    path = tmp_path / "periodic.h5"
+    with H5Writer(path) as out:
+        out(sim)
+    c = read_frame(path, 0)["contacts"]
+    b = sim.bodies
+    ends = c["xdmf"]["points"].reshape(-1, 2, 3)
+    assert np.array_equal(ends[:, 0, :dim], b.pos[c["i"]])
+    length = np.linalg.norm(ends[:, 1] - ends[:, 0], axis=1)
+    pair = ~c["is_wall"]
+    reach = b.radius[c["i"]] + np.where(pair, b.radius[c["j"]], 0.0)
+    assert np.all(length <= reach) and np.any(pair)
+    far = np.linalg.norm(b.pos[c["j"]] - b.pos[c["i"]], axis=1) > reach
+    assert np.any(far & pair) or dim == 3  # 2D: some contacts cross a periodic side
+    wall_point = 0.5 * (c["x1"] + c["x2"])[~pair]
+    np.testing.assert_allclose(ends[~pair, 1, :dim], wall_point, rtol=0, atol=1e-15)
+    fn = np.einsum("kd,kd->k", c["force"], c["normal"])
+    assert np.array_equal(c["normal_force"], fn)
+    np.testing.assert_allclose(c["tangential_force"] + fn[:, None] * c["normal"],
+                               c["force"], rtol=0, atol=1e-15 * np.abs(fn).max())
+
+
+def test_stale_xdmf_companions_are_removed(tmp_path):
+    """Rewriting an output without contacts removes the contacts file of the last."""
+    path = tmp_path / "run.h5"
+    for contacts in (True, False):
+        sim = make_sim(3)
+        sim.run(300)
+        with H5Writer(path, contacts=contacts) as out:
+            out(sim)
+    files = dem.io.xdmf.xdmf_files(out.xdmf_path)
+    assert out.xdmf_paths == [files["particles"], files["walls"]]
+    assert not os.path.exists(files["contacts"])
 
 
 def test_writer_context_manager_publishes_on_error(tmp_path):

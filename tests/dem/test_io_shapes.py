@@ -16,6 +16,7 @@ import pytest
 
 import dem
 from dem.io import H5Writer, read_frame
+from dem.io.xdmf import xdmf_files
 from dem.shapes import Shape
 from dem.shapes.box import Box
 from dem.shapes.custom import CustomShape
@@ -221,21 +222,29 @@ def check_hdf_items(root, xdmf_path, h5_path):
     return n_refs
 
 
-def test_xdmf_has_a_shapes_grid(written):
+def test_xdmf_has_a_shapes_file(written):
     out, dim = written["out"], written["dim"]
-    root = ET.parse(out.xdmf_path).getroot()
-    assert check_hdf_items(root, out.xdmf_path, written["path"]) > 0
-    series = root.findall("Domain/Grid")
-    assert [s.get("Name") for s in series] == ["particles", "shapes"]
-    assert all(s.get("CollectionType") == "Temporal" for s in series)
-    particles, shapes = (s.findall("Grid") for s in series)
+    files = xdmf_files(out.xdmf_path)
+    assert out.xdmf_paths == [files["particles"], files["shapes"], files["walls"]]
+    series = []
+    for path in out.xdmf_paths:
+        root = ET.parse(path).getroot()
+        assert root.get("Version") == "3.0"
+        assert check_hdf_items(root, path, written["path"]) > 0
+        (s,) = root.findall("Domain/Grid")
+        assert s.get("CollectionType") == "Temporal"
+        series.append(s)
+    assert [s.get("Name") for s in series] == ["particles", "shapes", "walls"]
+    particles, shapes = (s.findall("Grid") for s in series[:2])
     assert len(particles) == len(shapes) == 2
     for index, (pg, sg) in enumerate(zip(particles, shapes, strict=True)):
         frame = read_frame(written["path"], index)
         assert float(sg.find("Time").get("Value")) == frame["time"]
         assert float(pg.find("Time").get("Value")) == frame["time"]
         names = {a.get("Name"): a for a in pg.findall("Attribute")}
-        assert set(names) == {"radius", "vel", "force", "kind"}
+        assert set(names) == {"position", "id", "kind", "radius", "vel", "force",
+                              "ang_vel", "quat"} \
+            | ({"angle"} if dim == 2 else set())
         assert names["vel"].find("DataItem").get("Dimensions").split()[-1] == "3"
         topo = sg.find("Topology")
         assert topo.get("TopologyType") == "Triangle"
@@ -244,7 +253,7 @@ def test_xdmf_has_a_shapes_grid(written):
         cell = {a.get("Name"): a.get("AttributeType") for a in sg.findall("Attribute")
                 if a.get("Center") == "Cell"}
         assert cell == {"body": "Scalar", "vel": "Vector"}
-    assert pg.find("Geometry").get("GeometryType") == ("XYZ" if dim == 3 else "XY")
+    assert pg.find("Geometry").get("GeometryType") == "XYZ"
 
 
 @pytest.mark.parametrize("dim", [2, 3])
@@ -258,14 +267,16 @@ def test_sphere_only_layout_is_unchanged(tmp_path, dim):
     with h5py.File(path, "r") as f:
         g = f["frames/000000"]
         assert set(g) == {"id", "kind", "pos", "vel", "rot", "ang_vel", "radius",
-                          "force", "walls"}
+                          "force", "walls", "xdmf"}
         assert g.attrs["n_spheres"] == g.attrs["n_particles"] == 5
         assert g.attrs["n_surface_cells"] == 0
+    assert out.xdmf_paths == [out.xdmf_path, xdmf_files(out.xdmf_path)["walls"]]
     root = ET.parse(out.xdmf_path).getroot()
     series = root.findall("Domain/Grid")
     assert [s.get("Name") for s in series] == ["particles"]
     grid = series[0].find("Grid")
     assert grid.find("Topology").get("TopologyType") == "Polyvertex"
-    assert {a.get("Name") for a in grid.findall("Attribute")} == {"radius", "vel",
-                                                                  "force"}
+    assert {a.get("Name") for a in grid.findall("Attribute")} == {
+        "position", "id", "kind", "radius", "vel", "force", "ang_vel", "quat"} | (
+        {"angle"} if dim == 2 else set())
     assert check_hdf_items(root, out.xdmf_path, path) > 0

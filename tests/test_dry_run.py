@@ -179,6 +179,20 @@ def test_hmm_run_dry_run_reads_a_packing_file_of_the_wrong_dimension(tmp_path):
     assert "packing is 2D, the mesh 3D" in err
 
 
+@pytest.mark.parametrize("center, expected", [([0.5, 0.5], 2), ([5.0, 5.0], 0)])
+def test_hmm_run_dry_run_reads_the_packing_of_a_spot_that_holds_a_point(
+        tmp_path, center, expected):
+    """An [[imperfection]] packing is read when a Gauss point lies in its spot, by the
+    run and by the dry run alike; a spot that holds none is never read."""
+    problem = {**PACKED, "imperfection": [{"center": center, "radius": 0.6,
+                                           "packing": "weak.h5"}]}
+    (tmp_path / "problem.toml").write_text(to_toml(problem))
+    write_rve_packing(tmp_path / "packing.h5")
+    (tmp_path / "weak.h5").write_text("not a packing")
+    assert agree("hmm", ["run", "problem.toml", "-o", "out"], tmp_path,
+                 "hmm.run._solve") == expected
+
+
 # --------------------------------------------------------------------------- hmm rve
 RVE_FROM_FILE = {"packing": {"file": "packing.h5"},
                  "test": {"axial_strain": 0.01, "increment": 0.005}}

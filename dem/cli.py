@@ -69,7 +69,8 @@ def _parser():
     run.add_argument("--steps", type=int, metavar="N",
                      help="number of steps (overrides [simulation] steps)")
     run.add_argument("--dry-run", action="store_true",
-                     help="validate and build the scene, then stop")
+                     help="validate and build the scene, check the output, print the "
+                          "plan, then stop; nothing is written")
     run.add_argument("--no-progress", action="store_true", help="no progress bar")
     run.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
                      help="more log messages (-vv for debug)")
@@ -138,14 +139,7 @@ def _cmd_run(args):
     out_file = output.file if args.output is None else args.output / output.file.name
     n_steps = scene["simulation"]["steps"]
     if args.dry_run:
-        from .limits import memory_estimate
-        from .shapes import Shape
-
-        n_particles = sim.bodies.n - len(sim.bodies.ids(Shape.PLANE))
-        print(f"{args.scene}: valid; {_bodies_line(sim)}; {n_steps} steps of "
-              f"dt = {sim.dt:.4g} s; output {out_file}; memory "
-              f"{memory_estimate(n_particles)}")
-        return EXIT_OK
+        return _dry_run(args, sim, out_file, n_steps)
     try:
         writer = _open_writer(out_file, output, args.overwrite)
     except OSError as exc:  # existing output, or the directory cannot be made
@@ -173,6 +167,24 @@ def _cmd_run(args):
           f"  steps      {n_steps} x dt = {sim.dt:.4g} s = {sim.time:.4g} s simulated\n"
           f"  wall time  {wall:.3g} s{rate} + {t0 - t_start:.3g} s start-up\n"
           f"  output     {out_file if writer is not None else 'none (no HDF5 writer)'}")
+    return EXIT_OK
+
+
+def _dry_run(args, sim, out_file, n_steps):
+    """Check the outputs as the run would (nothing is written) and print the plan."""
+    from .io.plan import check_new_files, work_line
+    from .limits import memory_estimate
+    from .shapes import Shape
+
+    try:
+        check_new_files([out_file, out_file.with_suffix(".xdmf")], args.overwrite)
+    except OSError as exc:
+        return _error(exc, EXIT_USAGE)
+    n_particles = sim.bodies.n - len(sim.bodies.ids(Shape.PLANE))
+    replaced = " (replaced)" if args.overwrite and out_file.exists() else ""
+    print(f"{args.scene}: valid; {_bodies_line(sim)}; {n_steps} steps of "
+          f"dt = {sim.dt:.4g} s; output {out_file}{replaced}; memory "
+          f"{memory_estimate(n_particles)}; {work_line(n_particles, n_steps)}")
     return EXIT_OK
 
 

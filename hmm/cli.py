@@ -54,7 +54,9 @@ def _parser():
                          epilog="The format is documented in docs/multiscale.md.")
     run.add_argument("file", type=Path, help="the problem file (TOML)")
     run.add_argument("--dry-run", action="store_true",
-                     help="validate and build the macro problem, then stop")
+                     help="read and check every input (packings, mesh, checkpoint) "
+                          "and the outputs, print the plan, then stop; nothing is "
+                          "written")
     run.add_argument("--restart", action="store_true",
                      help="continue from the output directory's checkpoint.h5")
     run.add_argument("--stop-after", type=_positive_int, metavar="STEP",
@@ -65,12 +67,18 @@ def _parser():
                          description="Consolidate a periodic packing, then compress it "
                                      "(biaxial in 2D, triaxial in 3D).")
     rve.add_argument("file", type=Path, help="the RVE test file (TOML)")
+    rve.add_argument("--dry-run", action="store_true",
+                     help="read and check the file, its packing and the outputs, print "
+                          "the plan, then stop; nothing is written")
     rve.set_defaults(func=cmd_rve)
     batch = sub.add_parser("batch", parents=[common], help="run a sweep of RVE tests",
                            description="Many standalone RVE tests from one sweep file, "
                                        "over MPI ranks with a dynamic queue when started "
                                        "by mpiexec; resumable.")
     batch.add_argument("file", type=Path, help="the sweep file (TOML)")
+    batch.add_argument("--dry-run", action="store_true",
+                       help="read and check the sweep, its packings and an existing "
+                            "batch file, print the plan, then stop; nothing is written")
     batch.set_defaults(func=_cmd_batch)
     return p
 
@@ -139,29 +147,27 @@ def _cmd_demo(args):
 def _cmd_run(args):
     from dem.io.scene import SceneError
 
-    from .problem import build_macro, load_problem
+    from .problem import load_problem
 
     try:
         problem = load_problem(args.file)
         if args.dry_run:
-            macro = build_macro(problem)
-            print(f"{args.file}: valid; {macro.n_elems} elements, {macro.n_gp} Gauss "
-                  f"points, {problem['load']['steps']} load steps{_memory(problem, macro)}")
+            from .dryrun import plan_run
+
+            print(plan_run(problem, _directory(problem, args), args.overwrite,
+                           args.restart, args.stop_after))
             return EXIT_OK
-    except SceneError as err:
+    except (SceneError, OSError, ValueError) as err:
         return _error("hmm run", err, EXIT_USAGE)
     return _solve(problem, args, "hmm run")
 
 
-def _memory(problem, macro):
-    """``; memory about ...`` of the RVEs of a problem whose packings are generated,
-    else empty."""
-    from dem.limits import memory_estimate
-
-    mc = problem["micro"]
-    if mc["model"] not in ("dem", "adaptive") or mc["packing"] is not None:
-        return ""
-    return f"; memory {memory_estimate(mc['count'] * macro.n_gp, macro.n_gp)}"
+def _directory(problem, args):
+    """The output directory of a run: ``-o``, else ``[output] dir``, else
+    ``output/<file stem>``."""
+    stem = Path(problem["source"]).stem if not problem["source"].startswith("<") \
+        else "demo"
+    return args.output or Path(problem["output"]["dir"] or f"output/{stem}")
 
 
 def _solve(problem, args, prog):
@@ -172,9 +178,7 @@ def _solve(problem, args, prog):
     from .farm import mpi_world
     from .run import run_problem
 
-    stem = Path(problem["source"]).stem if not problem["source"].startswith("<") \
-        else "demo"
-    directory = args.output or Path(problem["output"]["dir"] or f"output/{stem}")
+    directory = _directory(problem, args)
     _, comm = mpi_world()
     if comm is not None:
         _share_cores(comm.Get_size())
@@ -183,7 +187,7 @@ def _solve(problem, args, prog):
                               progress=False if args.no_progress else None, echo=print,
                               restart=getattr(args, "restart", False),
                               stop_after=getattr(args, "stop_after", None))
-    except (SceneError, FileExistsError, FileNotFoundError, ValueError) as err:
+    except (SceneError, OSError, ValueError) as err:
         return _error(prog, err, EXIT_USAGE)
     except (SolverError, SimulationError) as err:
         return _error(prog, err, EXIT_FAILED)
@@ -254,6 +258,12 @@ def cmd_rve(args):
 
     try:
         cfg = load_config(args.file)
+        if getattr(args, "dry_run", False):
+            from .dryrun import plan_rve
+
+            print(plan_rve(cfg, getattr(args, "output", None),
+                           getattr(args, "overwrite", False)))
+            return 0
         result = run_experiment(cfg, getattr(args, "output", None),
                                 overwrite=getattr(args, "overwrite", False),
                                 progress=not getattr(args, "no_progress", False)
@@ -393,6 +403,8 @@ def cmd_batch(args):
         err = comm.bcast(err, root=0)
     if err is not None:
         return _report("hmm batch", err, 2) if rank == 0 else 2
+    if getattr(args, "dry_run", False):
+        return _dry_batch(sweep, args) if rank == 0 else 0
     try:
         report = run_batch(sweep, getattr(args, "output", None),
                            overwrite=getattr(args, "overwrite", False),
@@ -418,6 +430,20 @@ def cmd_batch(args):
           f"{r.n_failed} failed (did not relax)\n"
           f"  output: {', '.join(r.files)}")
     return _batch_status(report)
+
+
+def _dry_batch(sweep, args):
+    """``hmm batch --dry-run``: the checks of :func:`hmm.dryrun.plan_batch`, its plan."""
+    from dem.io.scene import SceneError
+
+    from .dryrun import plan_batch
+
+    try:
+        print(plan_batch(sweep, getattr(args, "output", None),
+                         getattr(args, "overwrite", False)))
+    except (SceneError, OSError) as exc:
+        return _report("hmm batch", exc, 2)
+    return 0
 
 
 def _batch_status(report):

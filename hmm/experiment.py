@@ -464,16 +464,20 @@ def run_experiment(cfg, out_dir=None, overwrite=False, progress=None):
         Unusable packing parameters or packing file.
     FileExistsError
         An output file exists and ``overwrite`` is False.
+    OSError
+        An output is a directory, or the output directory cannot be made or
+        written into (checked first).
     dem.rve.RelaxationError
         An increment did not relax; nothing is written.
     """
     from dem.simulation import progress_bar
 
+    from dem.io.plan import check_new_files
+
     paths = output_paths(cfg, out_dir)
-    existing = [p for p in paths if p.exists()]
-    if existing and not overwrite:
-        raise FileExistsError(f"output file {existing[0]} exists; pass --overwrite to "
-                              f"replace it or choose another directory with --output")
+    # an existing output, a directory in its place, a directory that cannot be made:
+    # refused before the test runs, not after
+    check_new_files(paths, overwrite)
     t0 = time.perf_counter()
     packing = make_packing(cfg)
     rve, generated = packing[0], packing[2]

@@ -84,7 +84,7 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
                          overwrite=overwrite, driven=driven,
                          restart=(ck.step, ck.curve()) if ck is not None else None,
                          porous=porous, platens=platens)
-    except (FileExistsError, FileNotFoundError, ValueError) as err:
+    except (OSError, ValueError) as err:  # an existing output, a file in the path
         refused = err
     if comm is not None:
         refused = comm.allgather(refused)

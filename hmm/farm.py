@@ -202,6 +202,19 @@ class SignalWatch:
                 time.sleep(_POLL_S)
 
 
+def log_pids(comm):
+    """Log (INFO, rank 0) every rank's process id: hydra's banner for a rank lost to
+    SIGKILL names its PID only, and the survivors are killed before they can speak.
+    Collective."""
+    import os
+    import socket
+
+    pids = comm.gather((os.getpid(), socket.gethostname()), root=0)
+    if comm.Get_rank() == 0:
+        log.info("ranks' process ids: %s", ", ".join(
+            f"rank {r} pid {pid} on {host}" for r, (pid, host) in enumerate(pids)))
+
+
 def _recoverable(err):
     from dem.simulation import SimulationError
 
@@ -319,6 +332,7 @@ class MPIFarm:
         self.n_trials = 0
         self.n_migrated = 0  # points moved between ranks so far
         self._open = True
+        log_pids(comm)
         self.watch = SignalWatch(comm, leader=True).open()
         top = self.watch.tag  # the farm's own tags, just under the watch's
         self._tag_cmd, self._tag_ready, self._tag_go = top - 1, top - 2, top - 3
@@ -367,15 +381,14 @@ class MPIFarm:
 
     def close(self):
         """Release the other ranks from :meth:`serve` and put the signal handlers
-        back (rank 0; idempotent). A signal not yet acted on stops every rank here
-        (:class:`Interrupted`)."""
+        back (rank 0; idempotent). Never raises: a signal that arrives after the
+        last call of the farm lets the finished run end normally."""
         if self._open and self.rank == 0:
             self._open = False
-            try:
-                if not self.watch.stopped:
-                    self._command("stop")
-            finally:
-                self.watch.close()
+            self.watch.close()
+            if not self.watch.stopped:
+                for r in range(1, self.size):
+                    self.comm.send("stop", dest=r, tag=self._tag_cmd)
         self._open = False
 
     def _command(self, cmd):

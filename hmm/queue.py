@@ -36,7 +36,7 @@ from dem.io.scene import SceneError
 
 from .batch import OUTPUTS, Store, write_summaries
 from .experiment import compress, make_packing
-from .farm import Interrupted, SignalWatch, mpi_world
+from .farm import Interrupted, SignalWatch, log_pids, mpi_world
 
 log = logging.getLogger(__name__)
 
@@ -254,6 +254,7 @@ def run_batch(sweep, out_dir=None, overwrite=False, progress=None, world=None):
     MPI, comm = mpi_world() if world is None else world
     if comm is None:
         return _lead(sweep, out_dir, overwrite, progress, _Master(None, None))
+    log_pids(comm)
     watch = SignalWatch(comm).open()
     try:
         if comm.rank != 0:

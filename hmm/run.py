@@ -109,11 +109,9 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
         farm.serve()
         return None
     try:
-        summary = _solve(problem, macro, farm, supports, (f_const, f_ramp, loads), out,
-                         progress, say, t0, ck, stop_after, (porous, schedule))
-    except (Interrupted, KeyboardInterrupt):
-        out._plots = lambda: None  # a signal asks to stop now: no figures, files closed
-        raise
+        summary = _solve_or_stop(problem, macro, farm, supports, (f_const, f_ramp, loads),
+                                 out, progress, say, t0, ck, stop_after,
+                                 (porous, schedule))
     finally:
         if comm is not None:
             farm.close()
@@ -121,6 +119,16 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
         if ck is not None:
             ck.close()
     return summary
+
+
+def _solve_or_stop(*args):
+    """:func:`_solve`; after a signal the files are closed without the figures (the
+    user asked to stop now: drawing takes seconds)."""
+    try:
+        return _solve(*args)
+    except (Interrupted, KeyboardInterrupt):
+        args[5]._plots = lambda: None  # the Output
+        raise
 
 
 def _solve(problem, macro, farm, supports, loading, out, progress, say, t0,

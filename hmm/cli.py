@@ -82,7 +82,7 @@ def main(argv=None):
     roots = [logging.getLogger("hmm"), logging.getLogger("dem")]
     for r in roots:
         r.addHandler(handler)
-    term = _on_sigterm()
+    handlers = _on_signals()
     try:
         try:
             args = _parser().parse_args(argv)
@@ -101,30 +101,29 @@ def main(argv=None):
     finally:
         for r in roots:
             r.removeHandler(handler)
-        if term is not None:
-            signal.signal(signal.SIGTERM, term)
+        for s, h in handlers.items():
+            signal.signal(s, h)
     raise SystemExit(code)
 
 
-def _on_sigterm():
-    """SIGTERM raises :class:`hmm.farm.Interrupted`, as SIGINT raises
-    KeyboardInterrupt (an MPI farm or batch defers both to its own checks); returns
-    the previous handler, or None off the main thread."""
+def _on_signals():
+    """SIGINT and SIGTERM (unless ignored) raise :class:`hmm.farm.Interrupted` (an MPI
+    farm or batch defers them to its own checks); returns the previous handlers."""
     import threading
 
-    from .farm import Interrupted
+    from .farm import interrupt
 
-    def interrupt(signum, frame):
-        raise Interrupted(signum)
-
-    if threading.current_thread() is not threading.main_thread():
-        return None
-    return signal.signal(signal.SIGTERM, interrupt)
+    old = {}
+    if threading.current_thread() is threading.main_thread():
+        for s in (signal.SIGINT, signal.SIGTERM):
+            if signal.getsignal(s) is not signal.SIG_IGN:
+                old[s] = signal.signal(s, interrupt)
+    return old
 
 
 def _interruptible(args):
     """Run the command; a signal outside its own handling is one line too."""
-    from .farm import Interrupted
+    from .farm import Interrupted, reported
 
     try:
         return args.func(args)
@@ -132,6 +131,8 @@ def _interruptible(args):
         return _error(f"hmm {args.command}", "interrupted by SIGINT", 130)
     except Interrupted as err:
         return _error(f"hmm {args.command}", err, err.code)
+    finally:
+        reported()
 
 
 def _error(prog, msg, code):

@@ -19,7 +19,7 @@ distributes them over ranks. A micro model that raises ends the trial with a
 Signals: under MPI a :class:`SignalWatch` notes SIGINT and SIGTERM on every rank and
 turns them into :class:`Interrupted` on all ranks together, within milliseconds of a
 rank's next check (between micro-model calls and in every wait; the waits poll
-instead of blocking). Serially, SIGINT is Python's KeyboardInterrupt.
+instead of blocking). Serially, :func:`interrupt` raises it at once.
 """
 
 import logging
@@ -79,6 +79,29 @@ class Interrupted(BaseException):
     @property
     def code(self):
         return 128 + self.signum
+
+
+_raised = []  # signals interrupt() raised that the command has not reported yet
+
+
+def interrupt(signum, frame=None):
+    """The handler of SIGINT and SIGTERM in a serial ``hmm`` command: raise
+    :class:`Interrupted` at once, and again at the next :func:`raise_pending` should
+    Python drop it (an exception raised inside a weakref callback or a ``__del__``,
+    of which h5py has many, is only printed)."""
+    _raised.append(signum)
+    raise Interrupted(signum)
+
+
+def raise_pending():
+    """Raise again a signal :func:`interrupt` raised that was not reported."""
+    if _raised:
+        raise Interrupted(_raised[0])
+
+
+def reported():
+    """The command has reported the interruption (forget it)."""
+    _raised.clear()
 
 
 class SignalWatch:
@@ -240,6 +263,7 @@ class SerialFarm:
         self.n_trials = 0
 
     def trial(self, deps):
+        raise_pending()
         deps = np.asarray(deps, dtype=np.float64)
         if deps.shape != (self.n, self.dim, self.dim):
             raise ValueError(f"strain increments must be ({self.n}, {self.dim}, "

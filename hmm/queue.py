@@ -36,7 +36,7 @@ from dem.io.scene import SceneError
 
 from .batch import OUTPUTS, Store, write_summaries
 from .experiment import compress, make_packing
-from .farm import Interrupted, SignalWatch, log_pids, mpi_world
+from .farm import Interrupted, SignalWatch, log_pids, mpi_world, raise_pending
 
 log = logging.getLogger(__name__)
 
@@ -198,6 +198,7 @@ class _Master:
 
     # -- the loop
     def _poll(self):
+        raise_pending()
         self.service()
         if self.abort is not None:
             raise _Stopped

@@ -12,8 +12,9 @@
     ranks; resumable.
 
 Exit status: 0 on success, 1 when the run fails (no convergence, a micro model that
-cannot relax), 2 on bad input (invalid file, existing output, bad arguments). Errors
-are one line on stderr, ``hmm <command>: error: ...``, never a traceback.
+cannot relax), 2 on bad input (invalid file, existing output, bad arguments), 130 on
+SIGINT (Ctrl-C) and 143 on SIGTERM, on any rank under ``mpiexec``. Errors are one line
+on stderr, ``hmm <command>: error: ...``, never a traceback.
 
 The commands live here and import the modules that do the work (:mod:`hmm.run`,
 :mod:`hmm.experiment`, :mod:`hmm.batch`, :mod:`hmm.queue`) when they run; none of those
@@ -22,6 +23,7 @@ imports this module.
 
 import logging
 import math
+import signal
 import sys
 from pathlib import Path
 
@@ -103,6 +105,7 @@ def main(argv=None):
     roots = [logging.getLogger("hmm"), logging.getLogger("dem")]
     for r in roots:
         r.addHandler(handler)
+    handlers = _on_signals()
     try:
         try:
             args = _parser().parse_args(argv)
@@ -117,11 +120,42 @@ def main(argv=None):
                          logging.INFO if args.verbose else logging.WARNING)
                 for r in roots:
                     r.setLevel(level)
-                code = args.func(args)
+                code = _interruptible(args)
     finally:
         for r in roots:
             r.removeHandler(handler)
+        for s, h in handlers.items():
+            signal.signal(s, h)
     raise SystemExit(code)
+
+
+def _on_signals():
+    """SIGINT and SIGTERM (unless ignored) raise :class:`hmm.farm.Interrupted` (an MPI
+    farm or batch defers them to its own checks); returns the previous handlers."""
+    import threading
+
+    from .farm import interrupt
+
+    old = {}
+    if threading.current_thread() is threading.main_thread():
+        for s in (signal.SIGINT, signal.SIGTERM):
+            if signal.getsignal(s) is not signal.SIG_IGN:
+                old[s] = signal.signal(s, interrupt)
+    return old
+
+
+def _interruptible(args):
+    """Run the command; a signal outside its own handling is one line too."""
+    from .farm import Interrupted, reported
+
+    try:
+        return args.func(args)
+    except KeyboardInterrupt:
+        return _error(f"hmm {args.command}", "interrupted by SIGINT", 130)
+    except Interrupted as err:
+        return _error(f"hmm {args.command}", err, err.code)
+    finally:
+        reported()
 
 
 def _error(prog, msg, code):
@@ -175,7 +209,7 @@ def _solve(problem, args, prog):
     from dem.simulation import SimulationError
 
     from .coupling import SolverError
-    from .farm import mpi_world
+    from .farm import Interrupted, mpi_world
     from .run import run_problem
 
     directory = _directory(problem, args)
@@ -191,6 +225,10 @@ def _solve(problem, args, prog):
         return _error(prog, err, EXIT_USAGE)
     except (SolverError, SimulationError) as err:
         return _error(prog, err, EXIT_FAILED)
+    except KeyboardInterrupt:
+        return _interrupted(prog, Interrupted(signal.SIGINT), directory, comm)
+    except Interrupted as err:
+        return _interrupted(prog, err, directory, comm)
     except Exception as err:
         if comm is None:
             raise
@@ -230,6 +268,30 @@ def reaction_lines(summary):
         lines.append(f"reaction on {name}: "
                      + ", ".join(f"{'xyz'[c]} = {f[c]:.4g}" for c in comps) + f" {unit}")
     return lines
+
+
+def _interrupted(prog, err, directory, comm):
+    """One line from rank 0 (the outputs are closed by then); ``comm.Abort`` when a
+    rank did not answer in time, the last resort."""
+    if comm is None or comm.Get_rank() == 0:
+        _report(prog, f"{err}; {_checkpoint_note(directory)}", err.code)
+    if comm is not None and not err.settled:
+        sys.stderr.flush()
+        comm.Abort(err.code)
+    return err.code
+
+
+def _checkpoint_note(directory):
+    """Where a stopped run can continue from, in a few words."""
+    import h5py
+
+    path = Path(directory) / "checkpoint.h5"
+    try:
+        with h5py.File(path, "r") as f:
+            step = int(f.attrs["step"])
+    except (OSError, KeyError, TypeError, ValueError):
+        return f"no checkpoint in {directory}"
+    return f"{path} holds load step {step} (continue with --restart)"
 
 
 def _share_cores(n_ranks):
@@ -388,7 +450,7 @@ def cmd_batch(args):
     from dem.io.scene import SceneError
 
     from .batch import load_sweep
-    from .farm import mpi_world
+    from .farm import Interrupted, mpi_world
     from .queue import RankFailure, run_batch
 
     MPI, comm = mpi_world()
@@ -413,8 +475,15 @@ def cmd_batch(args):
     except (SceneError, OSError) as exc:
         return _report("hmm batch", exc, 2) if rank == 0 else 2
     except KeyboardInterrupt:
-        return _report("hmm batch", "interrupted; rerun the same command to resume",
-                       130) if rank == 0 else 130
+        return _report("hmm batch", "interrupted by SIGINT; rerun the same command to "
+                       "resume", 130) if rank == 0 else 130
+    except Interrupted as exc:
+        if rank == 0:
+            _report("hmm batch", f"{exc}; rerun the same command to resume", exc.code)
+        if comm is not None and not exc.settled:
+            sys.stderr.flush()
+            comm.Abort(exc.code)
+        return exc.code
     except RankFailure as exc:  # a worker: rank 0 reports its own failure
         return exc.code
     if rank != 0:

@@ -15,11 +15,25 @@ A farm owns the micro models of the Gauss points (flat index ``e * n_qp + q``: e
 :class:`SerialFarm` runs them in this process; an MPI farm with the same calls
 distributes them over ranks. A micro model that raises ends the trial with a
 :class:`MicroFailure` naming the Gauss point, so the solver can cut the step.
+
+Signals: under MPI a :class:`SignalWatch` notes SIGINT and SIGTERM on every rank and
+turns them into :class:`Interrupted` on all ranks together, within milliseconds of a
+rank's next check (between micro-model calls and in every wait; the waits poll
+instead of blocking). Serially, :func:`interrupt` raises it at once.
 """
 
+import logging
+import signal
+import threading
 import time
 
 import numpy as np
+
+log = logging.getLogger(__name__)
+
+_POLL_S = 1e-3  # sleep between two polls of a wait
+_SPINS = 50  # polls without sleep first: a quick answer is not delayed by a sleep
+GRACE_S = 3.0  # how long a stopping rank waits for the others before the job is aborted
 
 
 def mpi_world():
@@ -48,6 +62,182 @@ class MicroFailure(RuntimeError):
         self.recoverable = bool(recoverable)
 
 
+class Interrupted(BaseException):
+    """SIGINT or SIGTERM ended the run: signal ``signum`` arrived on ``rank``.
+
+    A BaseException, like KeyboardInterrupt, so that ``except Exception`` lets it
+    through. ``code`` is the exit status, 128 + signum (130 for SIGINT, 143 for
+    SIGTERM). ``settled`` is False when some rank did not answer within
+    :data:`GRACE_S`; the caller then ends the job with ``comm.Abort(code)``.
+    """
+
+    def __init__(self, signum, rank=None, settled=True):
+        self.signum, self.rank, self.settled = int(signum), rank, bool(settled)
+        where = "" if rank is None else f" on rank {rank}"
+        super().__init__(f"interrupted by {signal.Signals(self.signum).name}{where}")
+
+    @property
+    def code(self):
+        return 128 + self.signum
+
+
+_raised = []  # signals interrupt() raised that the command has not reported yet
+
+
+def interrupt(signum, frame=None):
+    """The handler of SIGINT and SIGTERM in a serial ``hmm`` command: raise
+    :class:`Interrupted` at once, and again at the next :func:`raise_pending` should
+    Python drop it (an exception raised inside a weakref callback or a ``__del__``,
+    of which h5py has many, is only printed)."""
+    _raised.append(signum)
+    raise Interrupted(signum)
+
+
+def raise_pending():
+    """Raise again a signal :func:`interrupt` raised that was not reported."""
+    if _raised:
+        raise Interrupted(_raised[0])
+
+
+def reported():
+    """The command has reported the interruption (forget it)."""
+    _raised.clear()
+
+
+class SignalWatch:
+    """SIGINT and SIGTERM on any rank of ``comm``, made known to every rank.
+
+    While open, the handlers only note a signal. :meth:`check`, called between
+    micro-model calls and in the polls of :meth:`wait`, tells every other rank (one
+    small message each, on the communicator's highest tag) and raises
+    :class:`Interrupted` naming the signal and the rank where it arrived. A rank that
+    stops first waits (at most :data:`GRACE_S`) to hear from every other rank, taking
+    any message still addressed to it, so that all ranks leave together and nothing is
+    left unread when MPI finalizes.
+
+    ``leader``: only rank 0 decides when to stop (the farm, whose collectives must not
+    be left half joined): another rank that gets a signal tells every rank and goes on
+    answering until it hears rank 0 stop; if rank 0 is silent for :data:`GRACE_S`
+    (stuck in a long micro-model call), it aborts the job, the last resort.
+    """
+
+    SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+    def __init__(self, comm, leader=False):
+        from mpi4py import MPI
+
+        self.comm, self.MPI = comm, MPI
+        self.rank, self.size = comm.Get_rank(), comm.Get_size()
+        self.tag = comm.Get_attr(MPI.TAG_UB)  # above every tag otherwise in use
+        self.leader = bool(leader)
+        self.signum = None  # the first signal that arrived here
+        self.origin = None  # (signum, rank) of the interruption, once known
+        self.heard = set()  # ranks whose message has arrived
+        self.told_at = None  # when this rank told the others (monotonic clock)
+        self.stopped = False
+        self._old = {}
+
+    def open(self):
+        """Install the handlers (from the main thread only); returns self."""
+        if threading.current_thread() is threading.main_thread():
+            for s in self.SIGNALS:
+                self._old[s] = signal.signal(s, self._note)
+        return self
+
+    def close(self):
+        """Put the previous handlers back."""
+        for s, handler in self._old.items():
+            signal.signal(s, handler)
+        self._old = {}
+
+    def _note(self, signum, frame):
+        if self.signum is None:
+            self.signum = signum
+
+    def _take(self, drain=False):
+        """Receive the stop messages that have arrived (with ``drain``: any message,
+        so that no rank stays blocked sending to this one)."""
+        status = self.MPI.Status()
+        tag = self.MPI.ANY_TAG if drain else self.tag
+        while self.comm.Iprobe(source=self.MPI.ANY_SOURCE, tag=tag, status=status):
+            src, got = status.Get_source(), status.Get_tag()
+            msg = self.comm.recv(source=src, tag=got)
+            if got == self.tag:
+                self.received(src, msg)
+
+    def received(self, src, msg):
+        """Record a stop message from rank ``src`` (taken by the caller's own probe)."""
+        self.heard.add(src)
+        if self.origin is None:
+            self.origin = tuple(msg)
+
+    def _tell(self):
+        if self.told_at is None:
+            self.told_at = time.monotonic()
+            for r in range(self.size):
+                if r != self.rank:
+                    self.comm.send(self.origin, dest=r, tag=self.tag)
+
+    def pending(self):
+        """True once an interruption is known on this rank (noted or heard)."""
+        if self.origin is None and self.signum is not None:
+            self.origin = (self.signum, self.rank)
+        self._take()
+        return self.origin is not None
+
+    def check(self):
+        """Raise :class:`Interrupted` if the job is to stop (see the class)."""
+        if not self.pending() or self.stopped:
+            return
+        if self.leader and self.rank != 0 and 0 not in self.heard:
+            self._tell()  # rank 0 decides; it hears this at its next check
+            if time.monotonic() - self.told_at > GRACE_S:
+                self._abort()
+            return
+        self.stop()
+
+    def stop(self):
+        """Tell the others, hear from them (at most GRACE_S), raise Interrupted."""
+        self.pending()
+        self._tell()
+        self.stopped = True
+        deadline = time.monotonic() + GRACE_S
+        while len(self.heard) < self.size - 1 and time.monotonic() < deadline:
+            self._take(drain=True)
+            time.sleep(_POLL_S)
+        signum, rank = self.origin
+        raise Interrupted(signum, rank, settled=len(self.heard) == self.size - 1)
+
+    def _abort(self):
+        signum, rank = self.origin
+        log.error("interrupted by %s on rank %d; rank 0 did not answer within %g s: "
+                  "ending the job", signal.Signals(signum).name, rank, GRACE_S)
+        self.comm.Abort(128 + signum)
+
+    def wait(self, ready):
+        """Poll ``ready()`` until it is true, checking for an interruption between
+        polls (a short sleep after the first few: no core spins)."""
+        n = 0
+        while not ready():
+            self.check()
+            n += 1
+            if n > _SPINS:
+                time.sleep(_POLL_S)
+
+
+def log_pids(comm):
+    """Log (INFO, rank 0) every rank's process id: hydra's banner for a rank lost to
+    SIGKILL names its PID only, and the survivors are killed before they can speak.
+    Collective."""
+    import os
+    import socket
+
+    pids = comm.gather((os.getpid(), socket.gethostname()), root=0)
+    if comm.Get_rank() == 0:
+        log.info("ranks' process ids: %s", ", ".join(
+            f"rank {r} pid {pid} on {host}" for r, (pid, host) in enumerate(pids)))
+
+
 def _recoverable(err):
     from dem.simulation import SimulationError
 
@@ -73,6 +263,7 @@ class SerialFarm:
         self.n_trials = 0
 
     def trial(self, deps):
+        raise_pending()
         deps = np.asarray(deps, dtype=np.float64)
         if deps.shape != (self.n, self.dim, self.dim):
             raise ValueError(f"strain increments must be ({self.n}, {self.dim}, "
@@ -132,6 +323,14 @@ class MPIFarm:
     last trial: points change rank with their committed state (``export``/``load``),
     never inside a load step. Results are bit for bit those of a serial farm.
 
+    Commands go to the other ranks as point-to-point messages that they poll for,
+    and after a trial every rank reports ready before the gathers start, so no rank
+    ever blocks while another computes. A SIGINT or SIGTERM on any rank
+    (:class:`SignalWatch`, opened with the farm) ends the farm on every rank with
+    :class:`Interrupted` at rank 0's next check: between its micro-model calls, at
+    each call of the farm or in a wait. Committed states are untouched: the last
+    checkpoint and the steps written so far stay valid.
+
     Parameters
     ----------
     comm : mpi4py communicator
@@ -152,12 +351,21 @@ class MPIFarm:
         self.factory = factory
         self.bounds = np.round(np.linspace(0, self.n, self.size + 1)).astype(np.int64)
         lo, hi = self.bounds[self.rank], self.bounds[self.rank + 1]
-        self.models = {g: factory(g) for g in range(lo, hi)}
         self.cost = np.zeros(self.n)
         self.steps = np.zeros(self.n, np.int64)
         self.n_trials = 0
         self.n_migrated = 0  # points moved between ranks so far
         self._open = True
+        log_pids(comm)
+        self.watch = SignalWatch(comm, leader=True).open()
+        top = self.watch.tag  # the farm's own tags, just under the watch's
+        self._tag_cmd, self._tag_ready, self._tag_go = top - 1, top - 2, top - 3
+        self.models = {}
+        try:
+            self.models = {g: factory(g) for g in range(lo, hi)}
+        except BaseException:
+            self.watch.close()
+            raise
 
     # ------------------------------------------------------------------ rank 0
     def trial(self, deps):
@@ -165,28 +373,28 @@ class MPIFarm:
         if deps.shape != (self.n, self.dim, self.dim):
             raise ValueError(f"strain increments must be ({self.n}, {self.dim}, "
                              f"{self.dim}), got {deps.shape}")
-        self.comm.bcast("trial", root=0)
+        self._command("trial")
         return self._trial(deps)
 
     def commit(self):
-        self.comm.bcast("commit", root=0)
+        self._command("commit")
         self._commit()
 
     def rollback(self):
-        self.comm.bcast("rollback", root=0)
+        self._command("rollback")
         self._rollback()
 
     def measures(self):
-        self.comm.bcast("measures", root=0)
+        self._command("measures")
         return self._measures()
 
     def stress(self):
-        self.comm.bcast("stress", root=0)
+        self._command("stress")
         return self._stress()
 
     def export(self):
         """Every point's committed state on rank 0, ``{g: {name: array}}``."""
-        self.comm.bcast("export", root=0)
+        self._command("export")
         return self._export()
 
     def load(self, read):
@@ -196,18 +404,37 @@ class MPIFarm:
             m.load(read(g))
 
     def close(self):
-        """Release the other ranks from :meth:`serve` (rank 0; idempotent)."""
+        """Release the other ranks from :meth:`serve` and put the signal handlers
+        back (rank 0; idempotent). Never raises: a signal that arrives after the
+        last call of the farm lets the finished run end normally."""
         if self._open and self.rank == 0:
-            self.comm.bcast("stop", root=0)
+            self._open = False
+            self.watch.close()
+            if not self.watch.stopped:
+                for r in range(1, self.size):
+                    self.comm.send("stop", dest=r, tag=self._tag_cmd)
         self._open = False
+
+    def _command(self, cmd):
+        self.watch.check()
+        for r in range(1, self.size):
+            self.comm.send(cmd, dest=r, tag=self._tag_cmd)
 
     # ------------------------------------------------------------------ other ranks
     def serve(self):
-        """Answer rank 0's commands until it closes the farm."""
+        """Answer rank 0's commands until it closes the farm (or stops it:
+        :class:`Interrupted`)."""
+        try:
+            self._serve()
+        finally:
+            self._open = False
+            self.watch.close()
+
+    def _serve(self):
         while True:
-            cmd = self.comm.bcast(None, root=0)
+            self.watch.wait(lambda: self.comm.Iprobe(source=0, tag=self._tag_cmd))
+            cmd = self.comm.recv(source=0, tag=self._tag_cmd)
             if cmd == "stop":
-                self._open = False
                 return
             if cmd == "trial":
                 self._trial(None)
@@ -259,6 +486,9 @@ class MPIFarm:
         cost = np.zeros((len(mine), 2))
         failure = None
         for k, g in enumerate(mine):
+            self.watch.check()
+            if self.watch.told_at is not None:
+                break  # a signal here: rank 0 stops the farm after this trial
             t0 = time.perf_counter()
             try:
                 s, t = self.models[g].trial(own[k])
@@ -267,12 +497,14 @@ class MPIFarm:
                 break
             sig[k], c[k] = s.ravel(), t.ravel()
             cost[k] = time.perf_counter() - t0, getattr(self.models[g], "steps", 0)
-        failures = self.comm.gather(failure, root=0)
+        failures = self._meet(failure)
         sig = self._gather(sig, dd)
         c = self._gather(c, d4)
         cost = self._gather(cost, 2)
         if self.rank != 0:
             return None
+        if self._told:  # a rank got a signal and skipped its points: its message
+            self.watch.wait(lambda: False)  # is on its way; stop when it is in
         self.n_trials += 1
         cost = cost.reshape(self.n, 2)
         self.cost[:] = cost[:, 0]
@@ -281,6 +513,26 @@ class MPIFarm:
         if bad:
             raise MicroFailure(*min(bad))
         return sig.reshape(self.n, d, d), c.reshape(self.n, d, d, d, d)
+
+    def _meet(self, failure):
+        """Every rank past its micro models, polled: rank 0 collects each rank's
+        failure (or None) and sends the go for the gathers."""
+        comm = self.comm
+        if self.rank != 0:
+            comm.send((failure, self.watch.told_at is not None), dest=0,
+                      tag=self._tag_ready)
+            self.watch.wait(lambda: comm.Iprobe(source=0, tag=self._tag_go))
+            comm.recv(source=0, tag=self._tag_go)
+            return None
+        failures, self._told = [failure], False
+        for r in range(1, self.size):
+            self.watch.wait(lambda r=r: comm.Iprobe(source=r, tag=self._tag_ready))
+            failure, told = comm.recv(source=r, tag=self._tag_ready)
+            failures.append(failure)
+            self._told |= told
+        for r in range(1, self.size):
+            comm.send(None, dest=r, tag=self._tag_go)
+        return failures
 
     def _commit(self):
         for m in self.models.values():

@@ -312,8 +312,9 @@ class Output:
         g.create_dataset("gauss/darcy_flux", data=flux)
         g.create_dataset("gauss/total_stress", data=total)
 
-    def close(self):
-        """Write the curve, the XDMF file and the plots; close the HDF5 file."""
+    def close(self, plots=True):
+        """Write the curve, the XDMF file and (unless ``plots`` is False, e.g. after an
+        interrupt: drawing takes seconds) the plots; close the HDF5 file."""
         if self._closed:
             return
         self._closed = True
@@ -326,6 +327,8 @@ class Output:
         f.close()
         self.f = None
         self._xdmf(keys)
+        if not plots:
+            return
         try:
             self._plots()
         except Exception as err:  # noqa: BLE001 - a plot must not lose a finished run

@@ -14,8 +14,11 @@ Faults: a :class:`dem.rve.RelaxationError` (the packing did not relax) is record
 a failed experiment and the batch goes on; any other exception is a bug or unusable
 input: rank 0 tells every rank to stop (a rank busy with an experiment stops after
 its current increment) and the batch ends with a message naming the experiment.
-Every path through :func:`run_batch` ends with all workers stopped and a broadcast
-from rank 0, so no rank is left waiting.
+Every path through :func:`run_batch` ends with all workers stopped and the outcome
+sent from rank 0, so no rank is left waiting. Every wait polls, and a SIGINT or
+SIGTERM on any rank (:class:`hmm.farm.SignalWatch`) ends the batch on every rank
+with :class:`hmm.farm.Interrupted` within milliseconds of its next check (after each
+increment, in each wait); ``batch.h5`` holds every experiment recorded before it.
 
 The sweep file, the experiment ids, ``batch.h5`` (and resuming it) and the summaries
 are :mod:`hmm.batch`'s.
@@ -33,13 +36,13 @@ from dem.io.scene import SceneError
 
 from .batch import OUTPUTS, Store, write_summaries
 from .experiment import compress, make_packing
-from .farm import mpi_world
+from .farm import Interrupted, SignalWatch, log_pids, mpi_world, raise_pending
 
 log = logging.getLogger(__name__)
 
 __all__ = ["BatchReport", "RankFailure", "run_batch", "run_one"]
 
-TAG_TASK, TAG_STOP, TAG_DONE, TAG_FAILED, TAG_ABANDONED = range(11, 16)
+TAG_TASK, TAG_STOP, TAG_DONE, TAG_FAILED, TAG_ABANDONED, TAG_OUTCOME = range(11, 17)
 _POLL_S = 0.002  # sleep between probes while waiting (a blocking recv spins a core)
 
 
@@ -111,8 +114,8 @@ class _Master:
     when idle, else after its current increment (or packing phase).
     """
 
-    def __init__(self, MPI, comm):
-        self.MPI, self.comm = MPI, comm
+    def __init__(self, MPI, comm, watch=None):
+        self.MPI, self.comm, self.watch = MPI, comm, watch
         self.workers = range(1, comm.size) if comm is not None else range(0)
         self.busy, self.stopped = {}, set()
         self.store, self.bar, self.queue, self.by_id = None, None, deque(), {}
@@ -138,6 +141,7 @@ class _Master:
             return
         status = self.MPI.Status()
         while True:
+            self.watch.check()
             if not self.comm.Iprobe(source=self.MPI.ANY_SOURCE,
                                     tag=self.MPI.ANY_TAG, status=status):
                 if not block:
@@ -146,6 +150,9 @@ class _Master:
                 continue
             rank, tag = status.Get_source(), status.Get_tag()
             payload = self.comm.recv(source=rank, tag=tag)
+            if tag == self.watch.tag:  # a signal on that rank
+                self.watch.received(rank, payload)
+                self.watch.check()
             self.busy.pop(rank, None)
             if self.store is not None:  # None while shutting down after a failure
                 if tag == TAG_DONE:
@@ -191,6 +198,7 @@ class _Master:
 
     # -- the loop
     def _poll(self):
+        raise_pending()
         self.service()
         if self.abort is not None:
             raise _Stopped
@@ -245,32 +253,51 @@ def run_batch(sweep, out_dir=None, overwrite=False, progress=None, world=None):
         On every rank, before anything ran: ``batch.h5`` holds another sweep.
     """
     MPI, comm = mpi_world() if world is None else world
-    if comm is not None and comm.rank != 0:
-        _serve(MPI, comm)
-        outcome = comm.bcast(None, root=0)
-        if isinstance(outcome, str):
-            raise SceneError(outcome)
-        if isinstance(outcome, int):
-            raise RankFailure(outcome)
-        return outcome
-    master = _Master(MPI, comm)
+    if comm is None:
+        return _lead(sweep, out_dir, overwrite, progress, _Master(None, None))
+    log_pids(comm)
+    watch = SignalWatch(comm).open()
+    try:
+        if comm.rank != 0:
+            return _work(MPI, comm, watch)
+        return _master(sweep, out_dir, overwrite, progress, _Master(MPI, comm, watch))
+    finally:
+        watch.close()
+
+
+def _work(MPI, comm, watch):
+    _serve(MPI, comm, watch)
+    watch.wait(lambda: comm.Iprobe(source=0, tag=TAG_OUTCOME))
+    outcome = comm.recv(source=0, tag=TAG_OUTCOME)
+    if isinstance(outcome, str):
+        raise SceneError(outcome)
+    if isinstance(outcome, int):
+        raise RankFailure(outcome)
+    return outcome
+
+
+def _master(sweep, out_dir, overwrite, progress, master):
     try:
         report = _lead(sweep, out_dir, overwrite, progress, master)
+        master.watch.check()  # a signal while the summaries were written
+    except Interrupted:
+        raise  # every rank stops on its own (SignalWatch)
     except SceneError as exc:
         master.shutdown(str(exc))
-        _bcast(comm, str(exc))
+        _send_outcome(master.comm, str(exc))
         raise
-    except BaseException as exc:
+    except BaseException:
         master.shutdown("rank 0 failed")
-        _bcast(comm, 130 if isinstance(exc, KeyboardInterrupt) else 1)
+        _send_outcome(master.comm, 1)
         raise
-    _bcast(comm, report)
+    _send_outcome(master.comm, report)
     return report
 
 
-def _bcast(comm, value):
-    if comm is not None:
-        comm.bcast(value, root=0)
+def _send_outcome(comm, value):
+    """The batch's outcome to every worker (each polls for it)."""
+    for rank in range(1, comm.size):
+        comm.send(value, dest=rank, tag=TAG_OUTCOME)
 
 
 def _lead(sweep, out_dir, overwrite, progress, master):
@@ -305,19 +332,22 @@ def _lead(sweep, out_dir, overwrite, progress, master):
     return report
 
 
-def _serve(MPI, comm):
+def _serve(MPI, comm, watch):
     """A worker: run what rank 0 sends until it says stop."""
     status = MPI.Status()
 
     def poll():
+        watch.check()
         if comm.Iprobe(source=0, tag=TAG_STOP):
             raise _Stopped
 
     while True:
-        while not comm.Iprobe(source=0, tag=MPI.ANY_TAG, status=status):
-            time.sleep(_POLL_S)
+        watch.wait(lambda: comm.Iprobe(source=0, tag=MPI.ANY_TAG, status=status))
         tag = status.Get_tag()
         payload = comm.recv(source=0, tag=tag)
+        if tag == watch.tag:  # rank 0 stops on a signal
+            watch.received(0, payload)
+            watch.check()
         if tag == TAG_STOP:
             return
         reply_tag, reply = _attempt(*payload, poll)

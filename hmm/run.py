@@ -18,7 +18,7 @@ from .checkpoint import Checkpoint
 from .checkpoint import save as save_checkpoint
 from .coupling import Solver, SolverError, SolverSettings
 from .porous import BiotSolver
-from .farm import mpi_world
+from .farm import Interrupted, mpi_world
 from .io import Output
 from .problem import build_farm, build_loads, build_macro, build_porous, validate_problem
 
@@ -111,13 +111,17 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     if rank != 0:
         farm.serve()
         return None
+    interrupted = False
     try:
         summary = _solve(problem, macro, farm, supports, (f_const, f_ramp, loads), out,
                          progress, say, t0, ck, stop_after, (porous, schedule))
+    except (Interrupted, KeyboardInterrupt):
+        interrupted = True  # the user asked to stop now: no figures
+        raise
     finally:
         if comm is not None:
             farm.close()
-        out.close()
+        out.close(plots=not interrupted)
         if ck is not None:
             ck.close()
     return summary

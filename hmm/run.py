@@ -111,20 +111,9 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     if rank != 0:
         farm.serve()
         return None
-    interrupted = False
-    try:
-        summary = _solve(problem, macro, farm, supports, (f_const, f_ramp, loads), out,
-                         progress, say, t0, ck, stop_after, (porous, schedule))
-    except (Interrupted, KeyboardInterrupt):
-        interrupted = True  # the user asked to stop now: no figures
-        raise
-    finally:
-        if comm is not None:
-            farm.close()
-        out.close(plots=not interrupted)
-        if ck is not None:
-            ck.close()
-    return summary
+    return _solve_and_close((problem, macro, farm, supports, (f_const, f_ramp, loads),
+                             out, progress, say, t0, ck, stop_after, (porous, schedule)),
+                            comm)
 
 
 #: the files a run writes into its directory
@@ -147,6 +136,25 @@ def _refuse_directories(directory):
         if path.is_dir():
             raise FileExistsError(f"{path} is a directory, not an output file: remove "
                                   f"it or choose another directory with --output")
+
+
+def _solve_and_close(args, comm):
+    """:func:`_solve` on ``args``, then the farm, the output and the checkpoint closed;
+    after an interrupt without the figures (the user asked to stop now, and drawing
+    takes seconds)."""
+    farm, out, ck = args[2], args[5], args[9]
+    plots = True
+    try:
+        return _solve(*args)
+    except (Interrupted, KeyboardInterrupt):
+        plots = False
+        raise
+    finally:
+        if comm is not None:
+            farm.close()
+        out.close(plots=plots)
+        if ck is not None:
+            ck.close()
 
 
 def _solve(problem, macro, farm, supports, loading, out, progress, say, t0,

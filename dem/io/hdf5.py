@@ -80,10 +80,10 @@ import numpy as np
 from ..observers import Periodic
 from ..rotation import rotation_matrices
 from ..shapes import Shape
+from .xdmf import FORMAT, write_xdmf, xdmf_files
 
 log = logging.getLogger(__name__)
 
-FORMAT = "dem.h5writer"
 VERSION = 3  # 2: frames hold every particle (kind, surface/), not spheres only;
 #               3: padded 3-vectors and cells for XDMF 3 in each frame (xdmf/ groups)
 
@@ -456,8 +456,6 @@ class H5Writer:
         finally:
             f.close()
         publish(self.tmp_path, self.path)
-        from .xdmf import write_xdmf, xdmf_files
-
         write_xdmf(self.path, self.xdmf_path)
         self.xdmf_paths = [p for p in xdmf_files(self.xdmf_path).values()
                            if os.path.exists(p)]

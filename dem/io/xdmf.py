@@ -46,6 +46,10 @@ import xml.etree.ElementTree as ET
 
 import h5py
 
+#: the format tag of the particle-frame files described here (written by
+#: :class:`dem.io.hdf5.H5Writer`, which takes it from this module)
+FORMAT = "dem.h5writer"
+
 log = logging.getLogger(__name__)
 
 #: the collections, each in its own file: name -> suffix added to the stem
@@ -197,8 +201,6 @@ def write_xdmf(h5_path, xdmf_path=None):
         The particles' path. Files are written atomically (a temporary file renamed
         into place).
     """
-    from .hdf5 import FORMAT
-
     h5_path = os.fspath(h5_path)
     if xdmf_path is None:
         xdmf_path = os.path.splitext(h5_path)[0] + ".xdmf"

@@ -303,9 +303,15 @@ class Store:
         self.stored = {name: str(g.attrs["status"]) for name, g in self.f.items()}
 
     def _check(self, f, sweep):
-        """Refuse a file that is not a batch of this sweep."""
-        if f.attrs.get("format", FORMAT) != FORMAT:
-            self._refuse("is not a batch file")
+        """Refuse a file that is not a batch of this sweep: another program's (its
+        ``format`` tag is another, or it has none and holds something: an empty file
+        is a batch cut short before its first write)."""
+        tag = f.attrs.get("format")
+        if isinstance(tag, bytes):
+            tag = tag.decode(errors="replace")
+        if tag != FORMAT and (tag is not None or len(f) or len(f.attrs)):
+            what = f"a {tag!r} file" if tag is not None else "an HDF5 file without a format tag"
+            self._refuse(f"is {what}, not a batch file ({FORMAT!r})")
         by_id = {e.id: e for e in sweep.experiments}
         for name, g in f.items():
             e = by_id.get(name)

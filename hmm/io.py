@@ -50,6 +50,9 @@ from dem.io.hdf5 import save_figure
 
 log = logging.getLogger(__name__)
 
+#: the format tag and version of ``fields.h5`` (files of earlier runs carry none)
+FORMAT, VERSION = "hmm.fields", 1
+
 #: XDMF topology of each mesh kind (its corner vertices, whatever the element order)
 _TOPOLOGY = ((MeshQuad, "Quadrilateral"), (MeshTri, "Triangle"), (MeshHex, "Hexahedron"),
              (MeshTet, "Tetrahedron"))
@@ -141,6 +144,8 @@ class Output:
         self.f.create_dataset("mesh/cells", data=cells)
         self.f.create_dataset("gauss/points", data=macro.gauss_points())
         self.f.create_dataset("gauss/weights", data=macro.weights())
+        self.f.attrs["format"] = FORMAT
+        self.f.attrs["version"] = VERSION
         self.f.attrs["kinematics"] = macro.kinematics
         if porous is not None:
             self.f.attrs["pressure_element"] = porous.p_element

@@ -276,3 +276,38 @@ def test_a_batch_of_undrained_tests_is_refused_in_one_line(tmp_path):
     path = _write(tmp_path, SWEEP.replace("[base.test]\n", "[base.test]\nkind = \"undrained\"\n"))
     with pytest.raises(SceneError, match=r"kind = \"undrained\": a batch sweeps drained"):
         load_sweep(path)
+
+
+@pytest.mark.parametrize("tag", [None, "hmm.fields"])
+def test_a_foreign_hdf5_file_is_refused_not_overwritten(tmp_path, capsys, tag):
+    """An existing batch.h5 that another program wrote (a fields.h5 carries its own
+    tag; older ones and other programs' files none) is refused in one line, untouched."""
+    h5 = tmp_path / "out" / "batch.h5"
+    h5.parent.mkdir()
+    with h5py.File(h5, "w") as f:
+        f.create_dataset("mesh/points", data=np.zeros((4, 3)))
+        if tag is not None:
+            f.attrs["format"] = tag
+    stamp = h5.stat().st_mtime_ns
+    assert _cmd(_write(tmp_path, SWEEP)) == 2
+    err = capsys.readouterr().err
+    what = f"a '{tag}' file" if tag else "an HDF5 file without a format tag"
+    assert err == (f"hmm batch: error: {h5} is {what}, not a batch file ('hmm.batch'); "
+                   f"pass --overwrite to replace it or choose another --output\n")
+    assert h5.stat().st_mtime_ns == stamp
+    with h5py.File(h5) as f:
+        assert list(f) == ["mesh"]
+
+
+def test_an_empty_batch_file_resumes(tmp_path, monkeypatch):
+    """A batch.h5 cut short before its first write (no tag, nothing in it) is resumed."""
+    h5 = tmp_path / "out" / "batch.h5"
+    h5.parent.mkdir()
+    h5py.File(h5, "w").close()
+    sweep = load_sweep(_write(tmp_path, SWEEP))
+    store = batch.Store(h5, sweep, overwrite=False)
+    try:
+        assert store.stored == {}
+        assert store.f.attrs["format"] == "hmm.batch"
+    finally:
+        store.f.close()

@@ -167,6 +167,8 @@ def _cmd_run(args):
           f"  steps      {n_steps} x dt = {sim.dt:.4g} s = {sim.time:.4g} s simulated\n"
           f"  wall time  {wall:.3g} s{rate} + {t0 - t_start:.3g} s start-up\n"
           f"  output     {out_file if writer is not None else 'none (no HDF5 writer)'}")
+    if writer is not None and writer.xdmf_paths:  # what ParaView and meshio open
+        print("  xdmf       " + ", ".join(Path(p).name for p in writer.xdmf_paths))
     return EXIT_OK
 
 

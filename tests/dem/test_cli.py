@@ -240,6 +240,11 @@ def test_valid_scene_runs(tmp_path, capsys):
     assert "8 spheres, 1 walls (3D)" in out and "40 x dt" in out
     if _h5_writer_available():
         assert (out_dir / "scene.h5").exists()
+        # the XDMF files ParaView and meshio open are named, and exist
+        xdmf = [ln for ln in out.splitlines() if ln.startswith("  xdmf ")]
+        names = xdmf[0].split(None, 1)[1].split(", ") if len(xdmf) == 1 else []
+        assert "scene.xdmf" in names and "scene_walls.xdmf" in names
+        assert all((out_dir / n).exists() for n in names)
         # a second run refuses to replace the output, then --overwrite replaces it
         code, _, err = run_cli(["run", path, "-o", out_dir], capsys)
         assert code == 2

@@ -126,6 +126,8 @@ def main(argv=None):
             r.removeHandler(handler)
         for s, h in handlers.items():
             signal.signal(s, h)
+        if _hooks:
+            sys.unraisablehook = _hooks.pop()
     raise SystemExit(code)
 
 
@@ -141,7 +143,23 @@ def _on_signals():
         for s in (signal.SIGINT, signal.SIGTERM):
             if signal.getsignal(s) is not signal.SIG_IGN:
                 old[s] = signal.signal(s, interrupt)
+        _hooks.append(sys.unraisablehook)
+        sys.unraisablehook = _unraisable
     return old
+
+
+_hooks = []  # the unraisable hooks _on_signals replaced (restored by main)
+
+
+def _unraisable(info):
+    """An :class:`hmm.farm.Interrupted` raised inside a weakref callback or a
+    ``__del__`` is dropped by Python, which would print it: it is raised again at the
+    next check (:func:`hmm.farm.raise_pending`), so it is not printed. Anything
+    else goes to Python's own hook."""
+    from .farm import Interrupted
+
+    if not isinstance(info.exc_value, Interrupted):
+        (_hooks[-1] if _hooks else sys.__unraisablehook__)(info)
 
 
 def _interruptible(args):

@@ -62,6 +62,54 @@ def particle_radii(n, radius, fractions=None, seed=0):
     return np.sort(out)[::-1].copy()
 
 
+def cloud_lengths(dim, radii, solid_fraction, aspect=None, what="a box: an edge"):
+    """Edge lengths [m] of a box that ``radii`` fill to ``solid_fraction``.
+
+    Checks that the fraction is one random addition reaches (at most 0.5 in 2D, 0.35
+    in 3D) and that every edge spans at least two diameters (``what`` names the edge in
+    that error). ``aspect`` (d,) sets the edge ratios (default a cube).
+    """
+    if dim not in (2, 3):
+        raise ValueError(f"dim must be 2 or 3, got {dim}")
+    limit = 0.5 if dim == 2 else 0.35
+    if not 0.0 < solid_fraction <= limit:
+        raise ValueError(f"solid_fraction of a random loose cloud must be in (0, {limit}], "
+                         f"got {solid_fraction}")
+    vol = (math.pi * radii**2).sum() if dim == 2 else (4.0 / 3.0 * math.pi * radii**3).sum()
+    a = np.ones(dim) if aspect is None else np.asarray(aspect, dtype=np.float64)
+    lengths = (vol / solid_fraction / np.prod(a)) ** (1.0 / dim) * a
+    if np.any(lengths < 4.0 * radii.max()):
+        raise ValueError(f"too few particles for {what} would be shorter than 2 particle "
+                         "diameters")
+    return lengths
+
+
+def random_addition(radii, lengths, solid_fraction, seed=0, periodic=True):
+    """Non-overlapping random positions [m] for ``radii`` in the box ``[0, lengths]``.
+
+    Random sequential addition in the given order, up to 10,000 tries a particle.
+    ``periodic``: centres anywhere, distances by the minimum image; otherwise every
+    particle lies wholly inside the box. ``solid_fraction`` only names the fraction in
+    the error when a particle finds no place.
+    """
+    rng = np.random.default_rng(seed)
+    pos = np.empty((radii.size, lengths.size))
+    for k, r in enumerate(radii):
+        lo, span = (0.0, lengths) if periodic else (r, lengths - 2.0 * r)
+        for _ in range(10000):
+            x = lo + rng.uniform(0.0, 1.0, lengths.size) * span
+            d = pos[:k] - x
+            if periodic:
+                d -= lengths * np.rint(d / lengths)
+            if k == 0 or np.all(np.einsum("ij,ij->i", d, d) >= (radii[:k] + r) ** 2):
+                pos[k] = x
+                break
+        else:
+            raise ValueError(f"could not place particle {k} of {radii.size} at solid "
+                             f"fraction {solid_fraction}: lower it")
+    return pos
+
+
 def loose_cloud(dim, radii, solid_fraction, seed=0, aspect=None):
     """A periodic cell and non-overlapping random positions for ``radii``.
 
@@ -71,32 +119,8 @@ def loose_cloud(dim, radii, solid_fraction, seed=0, aspect=None):
     Returns ``(cell, pos)``.
     """
     radii = np.asarray(radii, dtype=np.float64)
-    if dim not in (2, 3):
-        raise ValueError(f"dim must be 2 or 3, got {dim}")
-    limit = 0.5 if dim == 2 else 0.35
-    if not 0.0 < solid_fraction <= limit:
-        raise ValueError(f"solid_fraction of a random loose cloud must be in (0, {limit}], "
-                         f"got {solid_fraction}")
-    vol = (math.pi * radii**2).sum() if dim == 2 else (4.0 / 3.0 * math.pi * radii**3).sum()
-    a = np.ones(dim) if aspect is None else np.asarray(aspect, dtype=np.float64)
-    side = (vol / solid_fraction / np.prod(a)) ** (1.0 / dim)
-    lengths = side * a
-    if np.any(lengths < 4.0 * radii.max()):
-        raise ValueError("too few particles for a periodic cell: its edge would be "
-                         "shorter than 2 particle diameters")
-    rng = np.random.default_rng(seed)
-    pos = np.empty((radii.size, dim))
-    for k, r in enumerate(radii):
-        for _ in range(10000):
-            x = rng.uniform(0.0, 1.0, dim) * lengths
-            d = pos[:k] - x
-            d -= lengths * np.rint(d / lengths)
-            if k == 0 or np.all(np.einsum("ij,ij->i", d, d) >= (radii[:k] + r) ** 2):
-                pos[k] = x
-                break
-        else:
-            raise ValueError(f"could not place particle {k} of {radii.size} at solid "
-                             f"fraction {solid_fraction}: lower it")
+    lengths = cloud_lengths(dim, radii, solid_fraction, aspect, "a periodic cell: its edge")
+    pos = random_addition(radii, lengths, solid_fraction, seed, periodic=True)
     return PeriodicCell(lengths), pos
 
 

@@ -51,7 +51,7 @@ import numpy as np
 from .contact.laws import Law, law_from_spec
 from .contact.model import ContactModel
 from .observers import contact_summary
-from .packings import particle_radii, solid_volume
+from .packings import cloud_lengths, particle_radii, random_addition, solid_volume
 from .rve import RelaxationError, check_settings, scale_masses, store_settings
 from .shapes import Shape
 from .simulation import Simulation
@@ -487,30 +487,8 @@ def box_cloud(dim, radii, solid_fraction, seed=0, aspect=None):
     True
     """
     radii = np.asarray(radii, dtype=np.float64)
-    if dim not in (2, 3):
-        raise ValueError(f"dim must be 2 or 3, got {dim}")
-    limit = 0.5 if dim == 2 else 0.35
-    if not 0.0 < solid_fraction <= limit:
-        raise ValueError(f"solid_fraction of a random loose cloud must be in (0, {limit}], "
-                         f"got {solid_fraction}")
-    vol = (math.pi * radii**2).sum() if dim == 2 else (4.0 / 3.0 * math.pi * radii**3).sum()
-    a = np.ones(dim) if aspect is None else np.asarray(aspect, dtype=np.float64)
-    lengths = (vol / solid_fraction / np.prod(a)) ** (1.0 / dim) * a
-    if np.any(lengths < 4.0 * radii.max()):
-        raise ValueError("too few particles for a box: an edge would be shorter than "
-                         "2 particle diameters")
-    rng = np.random.default_rng(seed)
-    pos = np.empty((radii.size, dim))
-    for k, r in enumerate(radii):
-        for _ in range(10000):
-            x = r + rng.uniform(0.0, 1.0, dim) * (lengths - 2.0 * r)
-            dx = pos[:k] - x
-            if k == 0 or np.all(np.einsum("ij,ij->i", dx, dx) >= (radii[:k] + r) ** 2):
-                pos[k] = x
-                break
-        else:
-            raise ValueError(f"could not place particle {k} of {radii.size} at solid "
-                             f"fraction {solid_fraction}: lower it")
+    lengths = cloud_lengths(dim, radii, solid_fraction, aspect, "a box: an edge")
+    pos = random_addition(radii, lengths, solid_fraction, seed, periodic=False)
     return np.zeros(dim), lengths, pos
 
 

@@ -174,6 +174,7 @@ def _cmd_run(args):
 
 def _dry_run(args, sim, out_file, n_steps):
     """Check the outputs as the run would (nothing is written) and print the plan."""
+    from .cost import run_seconds, time_line
     from .io.plan import check_new_files, work_line
     from .limits import memory_estimate
     from .shapes import Shape
@@ -186,7 +187,8 @@ def _dry_run(args, sim, out_file, n_steps):
     replaced = " (replaced)" if args.overwrite and out_file.exists() else ""
     print(f"{args.scene}: valid; {_bodies_line(sim)}; {n_steps} steps of "
           f"dt = {sim.dt:.4g} s; output {out_file}{replaced}; memory "
-          f"{memory_estimate(n_particles)}; {work_line(n_particles, n_steps)}")
+          f"{memory_estimate(n_particles)}; {work_line(n_particles, n_steps)}; "
+          f"{time_line(run_seconds(n_particles, n_steps, sim.dim, sim.shaped))}")
     return EXIT_OK
 
 

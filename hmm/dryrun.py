@@ -9,14 +9,15 @@ generated packing that cannot be consolidated fails the real run (exit status 1,
 an input error).
 
 The plan gives sizes, steps, the memory of the particle state
-(:func:`dem.limits.memory_estimate`) and the work that sets the run time: RVE calls
-for ``hmm run`` (each a DEM relaxation; at least one per Gauss point, load step and
-Newton iteration), particle-increments for ``hmm rve`` and ``hmm batch``. The project
-has no calibrated time per RVE call, so no time in seconds is printed.
+(:func:`dem.limits.memory_estimate`), the work that sets the run time (RVE calls for
+``hmm run``: each a DEM relaxation, at least one per Gauss point, load step and Newton
+iteration; particle-increments for ``hmm rve`` and ``hmm batch``) and the time the
+cost model :mod:`dem.cost` gives for that work on one core.
 """
 
 from pathlib import Path
 
+from dem.cost import fe2_seconds, rve_test_seconds, time_line
 from dem.io.plan import check_new_files, check_writable_dir
 from dem.io.scene import SceneError
 from dem.limits import memory_estimate
@@ -54,9 +55,14 @@ def plan_run(problem, directory, overwrite=False, restart=False, stop_after=None
              else f"load steps {first} to {last} of {n}")
     calls = macro.n_gp * (last - first + 1)
     mc = problem["micro"]
-    work = (f"; work at least {calls} RVE calls ({macro.n_gp} Gauss points x "
-            f"{last - first + 1} load steps, times the Newton iterations)"
-            if mc["model"] in ("dem", "adaptive") else "")
+    work = ""
+    if mc["model"] in ("dem", "adaptive"):
+        seconds = fe2_seconds(n_particles, macro.dim, macro.n_gp, last - first + 1,
+                              mc["max_step_strain"], generated=mc["packing"] is None,
+                              shaped=mc["shape"] != "sphere")
+        work = (f"; work at least {calls} RVE calls ({macro.n_gp} Gauss points x "
+                f"{last - first + 1} load steps, times the Newton iterations); "
+                + time_line(seconds, at_most=mc["model"] == "adaptive"))
     memory = ("" if n_particles is None else
               f"; memory {memory_estimate(n_particles * macro.n_gp, macro.n_gp)}")
     mode = (f"restart from step {first - 1}" if restart else
@@ -130,7 +136,20 @@ def plan_rve(cfg, out_dir=None, overwrite=False):
     incs = n_increments(cfg["test"])
     return (f"{cfg['source']}: valid; {cfg['test']['kind']} test of {n} particles "
             f"({dim}D, {source}), {incs} increments; output {paths[0].parent}; memory "
-            f"{memory_estimate(n)}; work {n * incs:.3g} particle-increments")
+            f"{memory_estimate(n)}; work {n * incs:.3g} particle-increments; "
+            f"{time_line(_test_seconds(cfg, n, dim))}")
+
+
+def _test_seconds(cfg, n, dim):
+    """The cost model's seconds of one RVE test of ``n`` particles."""
+    from .experiment import n_increments
+
+    t, p = cfg["test"], cfg["packing"]
+    return rve_test_seconds(n, dim, n_increments(t), t.get("increment") or 1e-4,
+                            t["max_step_strain"],
+                            servo=t["kind"] in ("drained", "isotropic", "simple_shear"),
+                            generated=p["file"] is None,
+                            shaped=p.get("shape", "sphere") != "sphere")
 
 
 def plan_batch(sweep, out_dir=None, overwrite=False):
@@ -148,7 +167,7 @@ def plan_batch(sweep, out_dir=None, overwrite=False):
         stored = _stored(Store, files[0], sweep)
     check_writable_dir(out)
     todo = [e for e in sweep.experiments if e.id not in stored]
-    counts, work, read = [], 0, {}
+    counts, work, seconds, read = [], 0, 0.0, {}
     for e in todo:
         p = e.config["packing"]
         if p["file"] is not None:
@@ -159,11 +178,12 @@ def plan_batch(sweep, out_dir=None, overwrite=False):
             n = p["count"]
         counts.append(n)
         work += n * n_increments(e.config["test"])
+        seconds += _test_seconds(e.config, n, e.config["packing"].get("dim") or 2)
     largest = max(counts, default=0)
     return (f"{sweep.source}: valid; {len(sweep.experiments)} experiments "
             f"({len(todo)} to run, {len(stored)} already in {files[0]}); largest "
             f"packing {largest} particles; memory {memory_estimate(largest)} a rank; "
-            f"work {work:.3g} particle-increments")
+            f"work {work:.3g} particle-increments; {time_line(seconds)}")
 
 
 def _stored(store_class, path, sweep):

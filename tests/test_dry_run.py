@@ -10,12 +10,13 @@ exactly what the dry run accepted. Refusals are one line with exit status 2.
 
 import contextlib
 import copy
+import re
 from pathlib import Path
 from unittest import mock
 
 import h5py
 import pytest
-from test_hostile_inputs import BASES, ELASTIC, _stop, listing, run_cli, to_toml, \
+from test_hostile_inputs import BASES, ELASTIC, ROOT, _stop, listing, run_cli, to_toml, \
     write_rve_packing
 
 
@@ -233,6 +234,8 @@ def test_hmm_rve_dry_run_of_a_generated_packing_prints_the_plan(tmp_path):
     n = BASES["rve"]["packing"]["count"]
     assert f"test of {n} particles (2D, generated)" in out
     assert "increments" in out and "memory about" in out and "particle-increments" in out
+    assert re.search(r"; time (about|under) \S+ \S+ on one core \(cost model, warm "
+                     r"kernels\)$", out.strip())
 
 
 # --------------------------------------------------------------------------- hmm batch
@@ -281,15 +284,23 @@ def test_dry_runs_print_the_plan(tmp_path):
     assert code == 0, err
     steps = BASES["scene"]["simulation"]["steps"]
     assert f"{steps} steps" in out and f"work {30 * steps:.3g} particle-steps" in out
+    assert "on one core (cost model, warm kernels)" in out
     (tmp_path / "problem.toml").write_text(to_toml(ELASTIC))
     code, out, err = run_cli("hmm", ["run", "problem.toml", "-o", "out", "--dry-run"],
                              tmp_path)
     assert code == 0, err
     assert "2 elements, 8 Gauss points, 2 load steps; output out (new)" in out
+    code, out, err = run_cli("hmm", ["run", str(ROOT / "examples" / "biaxial.toml"),
+                                     "-o", "out", "--dry-run"], tmp_path)
+    assert code == 0, err
+    assert "work at least 256 RVE calls (32 Gauss points x 8 load steps" in out
+    assert re.search(r"; time (about|under) \S+ \S+ on one core", out)
     (tmp_path / "sweep.toml").write_text(to_toml(BASES["sweep"]))
     code, out, err = run_cli("hmm", ["batch", "sweep.toml", "--dry-run"], tmp_path)
     assert code == 0, err
     assert "8 experiments (8 to run, 0 already in" in out and "particle-increments" in out
+    assert re.search(r"; time (about|under) \S+ \S+ on one core \(cost model, warm "
+                     r"kernels\)$", out.strip())
 
 
 def test_a_restart_dry_run_names_the_steps_left(tmp_path):

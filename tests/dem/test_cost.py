@@ -1,0 +1,108 @@
+"""The cost model of the dry runs (dem.cost) and the notice of a cold compile
+(dem._jit.announce_compile)."""
+
+import importlib.util
+import io
+import logging
+
+import pytest
+
+from dem import _jit, cost
+
+
+def test_rve_time_grows_with_its_work():
+    base = cost.rve_test_seconds(200, 2, 100, 1e-3, 1e-5, servo=True)
+    assert cost.rve_test_seconds(400, 2, 100, 1e-3, 1e-5, servo=True) > base
+    assert cost.rve_test_seconds(200, 2, 200, 1e-3, 1e-5, servo=True) > base
+    assert cost.rve_test_seconds(200, 3, 100, 1e-3, 1e-5, servo=True) > base
+    assert cost.rve_test_seconds(200, 2, 100, 1e-3, 1e-5, servo=False) < base
+    # a packing read from a file is not consolidated
+    assert cost.rve_test_seconds(200, 2, 100, 1e-3, 1e-5, servo=True,
+                                 generated=False) == pytest.approx(
+        base - 200 * cost.CONSOLIDATION_S[2])
+    # steps: a load step per max_step_strain of the increment, then the relaxation
+    assert cost.rve_call_steps(-2.5e-4, 1e-5) == 25 + cost.RELAX_STEPS
+
+
+def test_multiscale_time_is_calls_times_call_cost():
+    one = cost.fe2_seconds(60, 2, 1, 1, 1e-5, generated=False)
+    many = cost.fe2_seconds(60, 2, 32, 8, 1e-5, generated=False)
+    assert many == pytest.approx(32 * 8 * one)
+    steps = cost.NEWTON_ITERATIONS * cost.rve_call_steps(1e-4, 1e-5)
+    assert one == pytest.approx(cost.rve_seconds(60, steps, 2))
+
+
+def test_shapes_cost_more_than_spheres():
+    assert cost.run_seconds(1000, 100, 3, shaped=True) > cost.run_seconds(1000, 100, 3)
+
+
+@pytest.mark.parametrize("seconds, text", [(0.2, "under 1 s"), (7.26, "7.3 s"),
+                                           (99.0, "99 s"), (100.0, "2 min"),
+                                           (3599.0, "60 min"), (7200.0, "2.0 h"),
+                                           (86400.0 * 3, "3 days")])
+def test_durations_read_as_a_person_would(seconds, text):
+    assert cost.duration(seconds) == text
+
+
+def test_the_time_line_logs_the_seconds(caplog):
+    with caplog.at_level(logging.INFO, logger="dem.cost"):
+        line = cost.time_line(754.0, at_most=True)
+    assert line == "time at most 13 min on one core (cost model, warm kernels)"
+    assert "cost model: 754 s on one core" in caplog.text
+
+
+class _Terminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def _fresh_kernel(tmp_path, monkeypatch, name):
+    """A cached kernel in a module of its own, with its own disk cache."""
+    monkeypatch.setattr(_jit.numba.config, "CACHE_DIR", str(tmp_path / "cache"))
+    src = tmp_path / f"{name}.py"
+    src.write_text("from dem._jit import kernel\n\n\n@kernel\ndef twice(x):\n"
+                   "    return 2.0 * x\n")
+    spec = importlib.util.spec_from_file_location(name, src)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module.twice
+
+
+def test_a_cold_kernel_is_announced_once_on_a_terminal(tmp_path, monkeypatch):
+    twice = _fresh_kernel(tmp_path, monkeypatch, "cold_kernel_a")
+    monkeypatch.setattr(_jit, "_announced", set())
+    monkeypatch.delenv("PMI_RANK", raising=False)
+    err = _Terminal()
+    monkeypatch.setattr(_jit.sys, "stderr", err)
+    assert _jit._cold(twice)
+    _jit.announce_compile(twice, "sphere")
+    _jit.announce_compile(twice, "sphere")
+    assert err.getvalue() == (f"dem: compiling the sphere kernels: first run only, "
+                              f"about {_jit.COMPILE_S['sphere']} s\n")
+    assert twice(2.0) == 4.0  # compiled and cached: warm from now on
+    assert not _jit._cold(twice)
+
+
+def test_warm_kernels_and_other_ranks_say_nothing(tmp_path, monkeypatch):
+    twice = _fresh_kernel(tmp_path, monkeypatch, "cold_kernel_b")
+    err = _Terminal()
+    monkeypatch.setattr(_jit.sys, "stderr", err)
+    monkeypatch.setattr(_jit, "_announced", set())
+    monkeypatch.setenv("PMI_RANK", "1")
+    _jit.announce_compile(twice, "shape")  # cold, but not rank 0
+    twice(1.0)
+    monkeypatch.setattr(_jit, "_announced", set())
+    monkeypatch.delenv("PMI_RANK")
+    _jit.announce_compile(twice, "shape")  # rank 0, but warm
+    assert err.getvalue() == ""
+
+
+def test_off_a_terminal_the_notice_is_logged(tmp_path, monkeypatch, caplog):
+    twice = _fresh_kernel(tmp_path, monkeypatch, "cold_kernel_c")
+    monkeypatch.setattr(_jit, "_announced", set())
+    monkeypatch.delenv("PMI_RANK", raising=False)
+    monkeypatch.setattr(_jit.sys, "stderr", io.StringIO())
+    with caplog.at_level(logging.INFO, logger="dem._jit"):
+        _jit.announce_compile(twice, "shape")
+    assert _jit.sys.stderr.getvalue() == ""
+    assert "compiling the shape kernels: first run only" in caplog.text

@@ -25,7 +25,9 @@ Two things are compiled per scene rather than per package, both here:
 """
 
 import hashlib
+import logging
 import os
+import sys
 import types as pytypes
 
 import numba
@@ -36,6 +38,13 @@ from numba.core import types
 from numba.extending import intrinsic, overload
 
 CACHE = os.environ.get("DEM_JIT_CACHE", "1") != "0"
+
+log = logging.getLogger(__name__)
+
+#: seconds of a cold compile of each kernel family on the reference machine of
+#: docs/performance.md (``benchmarks/cold_start.py``): the time loop of spheres and
+#: disks with its measures, and the loop of level-set shapes
+COMPILE_S = {"sphere": 60, "shape": 120}
 
 
 def source_stamp():
@@ -191,3 +200,35 @@ def set_threads(n):
 def get_threads():
     """Number of numba threads parallel kernels use now."""
     return numba.get_num_threads()
+
+
+_announced = set()
+
+
+def announce_compile(dispatcher, family):
+    """Say once per process and kernel family, before its first call, that the kernels
+    are being compiled and for about how long, where ``dispatcher`` is not in the
+    disk cache (a first run, or the first after an edit or upgrade). On a terminal the
+    line goes to stderr (``dem: compiling ...``); otherwise it is logged at INFO
+    (``-v`` shows it), so that scripted runs keep their output. Under MPI only rank
+    0 says it."""
+    if family in _announced:
+        return
+    _announced.add(family)
+    if not _cold(dispatcher) or os.environ.get("PMI_RANK", "0") != "0":
+        return
+    msg = (f"compiling the {family} kernels: first run only, about "
+           f"{COMPILE_S[family]} s")
+    if sys.stderr.isatty():
+        print(f"dem: {msg}", file=sys.stderr, flush=True)
+    else:
+        log.info(msg)
+
+
+def _cold(dispatcher):
+    """True if ``dispatcher`` (a cached numba dispatcher) has no index on disk yet."""
+    try:
+        index = dispatcher._cache._cache_file._index_path  # numba's cache layout
+    except AttributeError:  # not cached, or another numba: nothing to say
+        return False
+    return not os.path.exists(index)

@@ -6,6 +6,7 @@ import math
 import numba
 import numpy as np
 
+from ._jit import announce_compile
 from .boundary import PeriodicCell
 from .contact.loops import N_BLOCKS, InnerIndex, inner_index, stepper
 from .contact.model import ContactModel
@@ -276,6 +277,10 @@ class Simulation(ShapeScene):
                 self._rebuild()
             elif not self.shaped:
                 self._index()
+            if self.shaped:
+                announce_compile(self._shape_kernel, "shape")
+            else:
+                announce_compile(self._kernel, "sphere")
             self._call(0, True)
             if self._status[0] == REBUILD:  # bodies moved past the skin since its build
                 self._rebuild()

@@ -12,76 +12,20 @@ found in ``/proc`` by its ``PMI_RANK`` and a marker in its environment.
 import os
 import re
 import signal
-import subprocess
 import sys
-import textwrap
-import threading
 import time
 import uuid
 from pathlib import Path
 
 import h5py
 import pytest
+from signal_jobs import LIMIT_S, PROBLEM, Job, sweep, tmp_files
 
 MPI = pytest.importorskip("mpi4py.MPI")
 
 pytestmark = pytest.mark.mpi
 COMM = MPI.COMM_WORLD
 MPIEXEC = str(Path(sys.executable).parent / "mpiexec")
-ROOT = Path(__file__).resolve().parents[2]
-LIMIT_S = 5.0  # the promise: the whole job ends within this after the signal
-START_S = 240.0  # a watchdog for the job's start (imports, a cold numba cache)
-
-#: linear-elastic points, a checkpoint every load step: a long run of cheap steps
-PROBLEM = """
-[mesh]
-size = [1.0, 2.0]
-cells = [2, 2]
-
-[[dirichlet]]
-boundary = "bottom"
-component = "y"
-
-[[dirichlet]]
-boundary = "left"
-component = "x"
-
-[[dirichlet]]
-boundary = "top"
-component = "y"
-value = -0.01
-
-[micro]
-model = "linear_elastic"
-young = 1e6
-poisson = 0.3
-
-[load]
-steps = 5000
-
-[output]
-checkpoint_every = 1
-"""
-
-#: 8 experiments of 30 disks, 40 increments each: seconds each, far from done
-SWEEP = """
-[base.packing]
-count = 30
-radius = [0.8e-3, 1.2e-3]
-p0 = 1e5
-seed = 2
-[base.contact]
-law = "linear"
-kn = 1e8
-kt = 5e7
-mu = 0.5
-[base.test]
-axial_strain = 0.2
-increment = 0.005
-[sweep.grid]
-"test.confining" = [5e4, 1e5, 2e5, 4e5]
-"packing.seed" = [1, 2]
-"""
 
 
 @pytest.fixture
@@ -100,8 +44,7 @@ def _environment(marker):
     """This environment without the session's own MPI variables, plus a marker."""
     env = {k: v for k, v in os.environ.items()
            if not k.startswith(("PMI_", "HYDRA_", "MPIR_", "MPI_LOCAL"))}
-    env.update(HMM_SIGNAL_TEST=marker, NUMBA_NUM_THREADS="1",
-               PYTHONPATH=os.pathsep.join([str(ROOT), env.get("PYTHONPATH", "")]))
+    env.update(HMM_SIGNAL_TEST=marker, NUMBA_NUM_THREADS="1")
     return env
 
 
@@ -119,53 +62,18 @@ def _rank_pid(marker, rank):
     raise AssertionError(f"no process of rank {rank} found")
 
 
-class Job:
-    """``mpiexec -n 2 python -m hmm ARGS`` with its stderr read line by line."""
-
-    def __init__(self, args, cwd):
-        self.marker = uuid.uuid4().hex
-        self.proc = subprocess.Popen([MPIEXEC, "-n", "2", sys.executable, "-m", "hmm",
-                                      *args], cwd=cwd, env=_environment(self.marker),
-                                     stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
-                                     stderr=subprocess.PIPE, text=True,
-                                     start_new_session=True)
-        self.lines = []
-        self.reader = threading.Thread(target=self._read, daemon=True)
-        self.reader.start()
-
-    def _read(self):
-        for line in self.proc.stderr:
-            self.lines.append(line.rstrip("\n"))
-
-    def wait_for(self, ready, what):
-        t0 = time.monotonic()
-        while not ready():
-            assert self.proc.poll() is None, f"the job ended before {what}: {self.lines}"
-            assert time.monotonic() - t0 < START_S, f"no {what} in {START_S} s"
-            time.sleep(0.05)
-
-    def interrupt(self, who, signum):
-        """Send ``signum`` to rank ``who`` (or to mpiexec); (exit status, seconds)."""
-        pid = self.proc.pid if who == "mpiexec" else _rank_pid(self.marker, who)
-        t0 = time.monotonic()
-        os.kill(pid, signum)
-        try:
-            code = self.proc.wait(timeout=60.0)
-        except subprocess.TimeoutExpired:
-            os.killpg(self.proc.pid, signal.SIGKILL)
-            code = self.proc.wait()
-        elapsed = time.monotonic() - t0
-        self.reader.join(5.0)
-        return code, elapsed
-
-    def errors(self):
-        """stderr without log lines and without mpiexec's own notices."""
-        return [x for x in self.lines
-                if x.strip() and not x.startswith(("hmm: INFO", "[mpiexec@"))]
+def _job(args, cwd):
+    """``mpiexec -n 2 python -m hmm ARGS``; its processes carry a marker."""
+    marker = uuid.uuid4().hex
+    job = Job(args, cwd, prefix=[MPIEXEC, "-n", "2"], env=_environment(marker))
+    job.marker = marker
+    return job
 
 
-def _tmp_files(directory):
-    return sorted(p.name for p in Path(directory).iterdir() if p.name.endswith(".tmp"))
+def _interrupt(job, who, signum):
+    """Send ``signum`` to rank ``who`` (or to mpiexec); (exit status, seconds)."""
+    pid = job.proc.pid if who == "mpiexec" else _rank_pid(job.marker, who)
+    return job.interrupt(pid, signum)
 
 
 @pytest.mark.parametrize("who, signum", [(1, signal.SIGINT), (1, signal.SIGTERM),
@@ -179,10 +87,10 @@ def test_a_signal_ends_a_run_in_seconds_with_one_line(workdir, who, signum):
 
     (workdir / "problem.toml").write_text(PROBLEM)
     out = workdir / "out"
-    job = Job(["run", "problem.toml", "-o", "out", "--no-progress"], workdir)
+    job = _job(["run", "problem.toml", "-o", "out", "--no-progress"], workdir)
     job.wait_for(lambda: (out / "checkpoint.h5").exists(), "checkpoint")
     time.sleep(0.5)  # well into the run
-    code, elapsed = job.interrupt(who, signum)
+    code, elapsed = _interrupt(job, who, signum)
     name = signal.Signals(signum).name
     assert code == 128 + signum, (code, job.lines)
     assert elapsed < LIMIT_S, f"the job took {elapsed:.1f} s to end"
@@ -199,7 +107,7 @@ def test_a_signal_ends_a_run_in_seconds_with_one_line(workdir, who, signum):
         ck.close()
     with h5py.File(out / "fields.h5", "r") as f:
         assert len(f["steps"]) > step and "curve" in f
-    assert not _tmp_files(out)
+    assert not tmp_files(out)
 
 
 @pytest.mark.parametrize("who, signum", [(1, signal.SIGINT), ("mpiexec", signal.SIGTERM)])
@@ -208,12 +116,12 @@ def test_a_signal_ends_a_batch_in_seconds_with_one_line(workdir, who, signum):
         return
     from hmm.batch import read_batch
 
-    (workdir / "sweep.toml").write_text(textwrap.dedent(SWEEP))
+    (workdir / "sweep.toml").write_text(sweep([1, 2]))
     out = workdir / "out"
-    job = Job(["batch", "sweep.toml", "-o", "out", "--no-progress", "-v"], workdir)
+    job = _job(["batch", "sweep.toml", "-o", "out", "--no-progress", "-v"], workdir)
     job.wait_for(lambda: any(" done on rank " in x for x in job.lines),
                  "experiment done")
-    code, elapsed = job.interrupt(who, signum)
+    code, elapsed = _interrupt(job, who, signum)
     name = signal.Signals(signum).name
     assert code == 128 + signum, (code, job.lines)
     assert elapsed < LIMIT_S, f"the job took {elapsed:.1f} s to end"
@@ -224,4 +132,4 @@ def test_a_signal_ends_a_batch_in_seconds_with_one_line(workdir, who, signum):
         r"command to resume", errors[0]), errors
     stored = read_batch(out / "batch.h5")
     assert 1 <= len(stored) < 8
-    assert not _tmp_files(out)
+    assert not tmp_files(out)

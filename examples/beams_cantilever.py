@@ -18,17 +18,22 @@ Claims checked by tests/dem/test_beams.py (``main(small=True)``):
   trapezoidal rule that lumps the weight on the bodies.
 """
 
+import os
 from pathlib import Path
 
 import numpy as np
 
+from dem.io.hdf5 import figure_path
 from dem.peridynamics.beams import cantilever_deflection, cantilever_theory
 
 LENGTH, HEIGHT, DENSITY = 1.0, 0.05, 1000.0  # [m], [m], [kg/m^3]
 SAG = 1e-3  # tip deflection / length
 FULL = {"young": (1e6, 1e7, 1e8, 1e9), "n": (3, 5, 11, 21)}
 SMALL = {"young": (1e6, 1e9), "n": (3, 5, 11)}
-FIGURE = Path(__file__).resolve().parents[1] / "docs/figures/beams_cantilever.png"
+DOCS = Path(__file__).resolve().parents[1] / "docs" / "figures"
+#: the figure: in the output folder, or in docs/figures/ when run with --docs
+FIGURE = figure_path("beams_cantilever.png",
+                     Path(os.environ.get("EXAMPLES_OUTPUT", "output")) / "beams_cantilever", DOCS)
 
 
 def relative_errors(youngs, ns, dim=2):

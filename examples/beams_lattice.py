@@ -20,8 +20,10 @@ both lattices falls as bodies are added; the radius lattice is far too soft at c
 resolution because its surface bodies miss bonds (the peridynamic surface effect).
 """
 
+import os
 from pathlib import Path
 
+from dem.io.hdf5 import figure_path
 from dem.peridynamics.beam_lattice import lattice_constants, lattice_deflection
 from dem.peridynamics.beams import cantilever_theory
 
@@ -31,7 +33,10 @@ RATIO = 1.8  # bond radius / spacing of the "radius" lattice
 KAPPA = 5.0 / 6.0  # shear coefficient of a rectangle
 FULL = {"length": 1.0, "sections": (2, 3, 4, 5)}
 SMALL = {"length": 0.5, "sections": (2, 3)}
-FIGURE = Path(__file__).resolve().parents[1] / "docs/figures/beams_lattice.png"
+DOCS = Path(__file__).resolve().parents[1] / "docs" / "figures"
+#: the figure: in the output folder, or in docs/figures/ when run with --docs
+FIGURE = figure_path("beams_lattice.png",
+                     Path(os.environ.get("EXAMPLES_OUTPUT", "output")) / "beams_lattice", DOCS)
 
 
 def shear_modulus(variant):

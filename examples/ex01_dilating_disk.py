@@ -38,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 import dem
+from dem.io.hdf5 import figure_path
 
 SIZE = os.environ.get("EXAMPLES_SIZE", "small")
 
@@ -173,8 +174,9 @@ if __name__ == "__main__":
           f"(centre surface moved {growth:.4f} m)")
     print(f"six-fold symmetry error {symmetry_error:.1e}, "
           f"max |momentum| {np.abs(momentum).max():.1e} kg m/s")
-    out = (Path(__file__).resolve().parents[1] / "docs" / "figures"
-           / "ex01_dilating_disk.png")
+    out = figure_path("ex01_dilating_disk.png",
+                      Path(os.environ.get("EXAMPLES_OUTPUT", "output")) / "ex01",
+                      Path(__file__).resolve().parents[1] / "docs" / "figures")
     out.parent.mkdir(parents=True, exist_ok=True)
     visualize().savefig(out, dpi=90)
     print(f"figure: {out}")

@@ -56,6 +56,7 @@ from pathlib import Path
 import numpy as np
 
 import dem
+from dem.io.hdf5 import figure_path
 from dem.io.packing import hcp_layers
 
 SIZE = os.environ.get("EXAMPLES_SIZE", "small")
@@ -180,8 +181,9 @@ if __name__ == "__main__":
           f"(walls {sigma_xx_walls[-1]:.4f}, {sigma_yy_walls[-1]:.4f}); periodic cell "
           f"{bulk_stress[-1, 0, 0]:.4f}, {bulk_stress[-1, 1, 1]:.4f} Pa, sigma_zz "
           f"{bulk_stress[-1, 2, 2]:.4f} Pa")
-    out = (Path(__file__).resolve().parents[1] / "docs" / "figures"
-           / "ex02_uniaxial_compression.png")
+    out = figure_path("ex02_uniaxial_compression.png",
+                      Path(os.environ.get("EXAMPLES_OUTPUT", "output")) / "ex02",
+                      Path(__file__).resolve().parents[1] / "docs" / "figures")
     out.parent.mkdir(parents=True, exist_ok=True)
     visualize().savefig(out, dpi=90)
     print(f"figure: {out}")

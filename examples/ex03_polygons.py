@@ -19,8 +19,8 @@ Claims checked by tests/test_examples.py:
 
 Outputs: ``output/ex03/polygons.h5`` + ``.xdmf`` (ParaView:
 ``polygons_shapes.xdmf`` shows the polygons, ``polygons_contacts.xdmf`` the contact
-forces); run as a script it also writes ``docs/figures/ex03_polygons.png`` (start
-and end, and the energy budget).
+forces); run as a script it also writes ``ex03_polygons.png`` (start and end, and the
+energy budget) into its output folder, or into ``docs/figures/`` with ``--docs``.
 
 Small size: 12 polygons in the cluster, 1.5 s; ``EXAMPLES_SIZE=full``: 60 polygons, 4 s.
 """
@@ -32,6 +32,7 @@ import numpy as np
 
 import dem
 from dem.io import H5Writer
+from dem.io.hdf5 import figure_path
 from dem.observers import angular_momentum, elastic_energy, kinetic_energy
 from dem.shapes import ConvexPolygon
 
@@ -148,6 +149,8 @@ if __name__ == "__main__":
     print(f"momentum {momentum[-1]} kg m/s (launched: {momentum_expected})")
     print(f"largest energy rise between records: {energy_rise:.2e} of the initial energy")
     print(f"dissipated: {100 * dissipated:.1f} %; polygons moving at the end: {n_moving}")
-    fig_path = Path(__file__).resolve().parents[1] / "docs" / "figures" / "ex03_polygons.png"
+    fig_path = figure_path("ex03_polygons.png",
+                           OUT, Path(__file__).resolve().parents[1] / "docs" / "figures")
+    fig_path.parent.mkdir(parents=True, exist_ok=True)
     visualize().savefig(fig_path, dpi=100)
     print(f"wrote {OUT}/polygons.h5 (+ .xdmf) and {fig_path}")

@@ -27,7 +27,8 @@ small size), and as they tilt the point can jump from bottom to top, and the tor
 with it: the integrator makes an O(dt) energy error there (the energy rise above).
 
 Outputs: ``output/ex04/polyhedra.h5`` + ``.xdmf`` for ParaView (``polyhedra_shapes.xdmf``
-holds the prisms' surfaces); run as a script it also writes ``docs/figures/ex04_energy.png``.
+holds the prisms' surfaces); run as a script it also writes ``ex04_energy.png`` into its
+output folder (into ``docs/figures/`` with ``--docs``).
 
 Small size: 12 prisms in the cluster, 1.5 s; ``EXAMPLES_SIZE=full``: 60 prisms, 4 s.
 """
@@ -39,6 +40,7 @@ import numpy as np
 
 import dem
 from dem.io import H5Writer
+from dem.io.hdf5 import figure_path
 from dem.observers import angular_momentum, elastic_energy, kinetic_energy
 from dem.shapes import ConvexPolygon, ConvexPolyhedron
 
@@ -142,6 +144,8 @@ if __name__ == "__main__":
     print(f"largest energy rise between records: {energy_rise:.2e} of the initial energy")
     print(f"dissipated: {100 * dissipated:.1f} %; prisms moving at the end: {n_moving}")
     print(f"largest out-of-plane z, v_z or tilting spin: {off_plane:.2e}")
-    fig_path = Path(__file__).resolve().parents[1] / "docs" / "figures" / "ex04_energy.png"
+    fig_path = figure_path("ex04_energy.png",
+                           OUT, Path(__file__).resolve().parents[1] / "docs" / "figures")
+    fig_path.parent.mkdir(parents=True, exist_ok=True)
     visualize().savefig(fig_path, dpi=100)
     print(f"wrote {OUT}/polyhedra.h5 (+ .xdmf) and {fig_path}")

@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 import dem
+from dem.io.hdf5 import figure_path
 from dem.boundary import PeriodicCell
 from dem.io.packing import hcp_layers
 from dem.rve import RVE
@@ -148,8 +149,9 @@ if __name__ == "__main__":
           f"{series_zz[-1]:.4f}; sigma_xx box "
           f"{box_stress[-1, 0, 0]:.4f}, sigma_yy box {box_stress[-1, 1, 1]:.4f}, "
           f"periodic {cell_stress[-1, 0, 0]:.4f}")
-    out = (Path(__file__).resolve().parents[1] / "docs" / "figures"
-           / "ex05_box_vs_periodic.png")
+    out = figure_path("ex05_box_vs_periodic.png",
+                      Path(os.environ.get("EXAMPLES_OUTPUT", "output")) / "ex05",
+                      Path(__file__).resolve().parents[1] / "docs" / "figures")
     out.parent.mkdir(parents=True, exist_ok=True)
     visualize().savefig(out, dpi=90)
     print(f"figure: {out}")

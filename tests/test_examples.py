@@ -29,6 +29,25 @@ def ex02():
     return run_example("ex02_uniaxial_compression")
 
 
+# ------------------------------------------------------------------ where figures go
+def test_a_script_writes_its_figure_into_its_output_folder(tmp_path, monkeypatch, capsys):
+    """Run as a script, an example writes its figure beside its outputs; the committed
+    figure in docs/figures/ changes only with --docs."""
+    import sys
+
+    committed = EXAMPLES.parent / "docs" / "figures" / "ex01_dilating_disk.png"
+    before = committed.read_bytes() if committed.exists() else None
+    monkeypatch.setenv("EXAMPLES_OUTPUT", str(tmp_path))
+    monkeypatch.setenv("EXAMPLES_SIZE", "small")
+    script = str(EXAMPLES / "ex01_dilating_disk.py")
+    monkeypatch.setattr(sys, "argv", [script])
+    runpy.run_path(script, run_name="__main__")
+    written = tmp_path / "ex01" / "ex01_dilating_disk.png"
+    assert written.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert f"figure: {written}" in capsys.readouterr().out
+    assert (committed.read_bytes() if committed.exists() else None) == before
+
+
 # ------------------------------------------------------------------ ex01: dilating disk
 def test_ex01_radius_grows_linearly(ex01):
     # dR/dt = const: Heun's RK2 is exact, so only round-off separates R(t) from R0 + t

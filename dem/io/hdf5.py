@@ -72,6 +72,7 @@ usually holds the frames flushed before the crash.
 
 import logging
 import os
+import sys
 from pathlib import Path
 
 import h5py
@@ -131,6 +132,20 @@ def save_figure(fig, path, dpi=120):
         fig.savefig(fh, format="png", dpi=dpi)
     publish(tmp, path)
     return path
+
+
+def figure_path(name, out_dir, docs_dir, argv=None):
+    """Where a script writes its figure ``name``: into its output folder ``out_dir``,
+    or into ``docs_dir`` (the documentation's figures) when it was run with
+    ``--docs`` (``argv``: the script's arguments, default ``sys.argv[1:]``).
+
+    >>> figure_path("a.png", "output/ex", "docs/figures", argv=[]).as_posix()
+    'output/ex/a.png'
+    >>> figure_path("a.png", "output/ex", "docs/figures", argv=["--docs"]).as_posix()
+    'docs/figures/a.png'
+    """
+    argv = sys.argv[1:] if argv is None else argv
+    return Path(docs_dir if "--docs" in argv else out_dir) / name
 
 
 def frame_name(index):

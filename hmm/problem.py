@@ -652,9 +652,10 @@ def build_macro(problem):
     return macro
 
 
-def read_mesh(path, where):
-    """A scikit-fem mesh from a file meshio reads; a :class:`SceneError` starting
-    with ``where`` for anything else.
+def read_mesh(path, where=None):
+    """A scikit-fem mesh (its named boundaries included: gmsh physical groups, the
+    sets of a file skfem saved) from a file meshio reads; a :class:`SceneError`
+    starting with ``where`` (if given) for anything else.
 
     meshio prints to stdout and calls ``sys.exit`` on a file it cannot parse: its
     output is captured and turned into the one-line error.
@@ -664,8 +665,9 @@ def read_mesh(path, where):
 
     from skfem import Mesh
 
+    lead = "" if where is None else f"{where} "
     if Path(path).is_dir():
-        raise SceneError(f"{where} mesh file {path} is a directory")
+        raise SceneError(f"{lead}mesh file {path} is a directory")
     said = io.StringIO()
     try:
         with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
@@ -675,7 +677,7 @@ def read_mesh(path, where):
             "meshio gave up on it"
     except Exception as err:  # noqa: BLE001 - meshio raises many kinds
         reason = f"{type(err).__name__}: {err}"
-    raise SceneError(f"{where} cannot read mesh file {path}: {reason}")
+    raise SceneError(f"{lead}cannot read mesh file {path}: {reason}")
 
 
 def _cut_boundaries(problem, mesh):

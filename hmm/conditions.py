@@ -134,6 +134,8 @@ class Dirichlet:
         for c, k in zip(comps, dofs, strict=True):
             x = macro.basis.doflocs[:, k].T - origin  # (n, d): where each dof sits
             out.append((self.name, c, k, x @ g[c]))
+            if not np.all(np.isfinite(out[-1][3])):
+                raise ValueError("gradient gives displacements beyond floating point")
         return out
 
 

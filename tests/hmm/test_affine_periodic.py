@@ -263,3 +263,14 @@ def test_periodic_problem_file_runs_a_simple_shear_cell(tmp_path):
     np.testing.assert_allclose(eps[:, 0, 0], 0.0, atol=1e-15)
     shear = 1e7 / (2 * 1.25)
     np.testing.assert_allclose(solver.sigma[:, 0, 1], 2 * shear * 0.01, rtol=1e-11)
+
+
+def test_affine_boundaries_are_load_displacement_curves():
+    from hmm.run import driven_components
+
+    problem = validate_problem({
+        **BASE, "dirichlet": [{"boundary": "bottom", "component": "y"},
+                              {"boundary": "top", "gradient": [[0.0, 0.01], [0.0, 0.0]]},
+                              {"boundary": "right", "component": "y", "gradient": 0.01},
+                              {"boundary": "left", "value": -0.001, "component": "x"}]})
+    assert driven_components(problem, 2) == [("top", 0), ("right", 1), ("left", 0)]

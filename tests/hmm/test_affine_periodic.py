@@ -189,15 +189,19 @@ def test_periodic_pairs_that_do_not_fit_the_mesh_name_the_pair(edit, message):
         build_loads(problem, build_macro(problem))
 
 
-def periodic_cell(inclusion):
+def periodic_cell(inclusion, kinematics="small"):
     """A unit cell, 6 x 6 bilinear elements, left/right and bottom/top periodic, its
     corner at the origin held, loaded by an average gradient G; the stiff matrix has
-    a soft disc (E / 100) in the middle when ``inclusion``."""
-    macro = hmm.Macro(hmm.structured_mesh("quad1", [1.0, 1.0], [6, 6]))
+    a soft disc (E / 100) in the middle when ``inclusion``. Finite kinematics: a
+    neo-Hookean material and a larger G."""
+    macro = hmm.Macro(hmm.structured_mesh("quad1", [1.0, 1.0], [6, 6]), "quad1",
+                      kinematics)
     g = np.array([[0.01, 0.004], [0.0, -0.005]])
+    law = hmm.LinearElastic
+    if kinematics == "finite":
+        g, law = 10.0 * g, hmm.NeoHookean
     soft = np.linalg.norm(macro.gauss_points() - 0.5, axis=1) < 0.3
-    farm = hmm.SerialFarm([hmm.LinearElastic(1e6 if (s and inclusion) else 1e8, 0.3)
-                           for s in soft])
+    farm = hmm.SerialFarm([law(1e6 if (s and inclusion) else 1e8, 0.3) for s in soft])
     sup = hmm.supports(macro, [hmm.Dirichlet(point=[0.0, 0.0], gradient=0.0)],
                        periodic=[hmm.Periodic("left", "right"),
                                  hmm.Periodic("bottom", "top")], gradient=g)
@@ -218,13 +222,14 @@ def images(mesh, a, b, shift):
     return na, nb[j]
 
 
-def test_uniform_periodic_cell_returns_the_affine_field():
-    macro, solver, g = periodic_cell(inclusion=False)
+@pytest.mark.parametrize("kinematics", ["small", "finite"])
+def test_uniform_periodic_cell_returns_the_affine_field(kinematics):
+    macro, solver, g = periodic_cell(inclusion=False, kinematics=kinematics)
     np.testing.assert_allclose(macro.nodal_displacement(solver.u),
-                               macro.mesh.p.T @ g.T, rtol=0, atol=1e-15)
-    eps = macro.strain(solver.u)
-    np.testing.assert_allclose(eps, np.broadcast_to(0.5 * (g + g.T), eps.shape),
-                               rtol=0, atol=1e-14)
+                               macro.mesh.p.T @ g.T, rtol=0, atol=1e-14)
+    f = macro.deformation(solver.u)  # I + grad u: I + G everywhere
+    np.testing.assert_allclose(f, np.broadcast_to(np.eye(2) + g, f.shape), rtol=0,
+                               atol=1e-13)
 
 
 def test_periodic_cell_with_a_soft_inclusion_has_a_periodic_fluctuation():

@@ -220,7 +220,7 @@ def supports(macro, dirichlet=(), platens=(), periodic=(), gradient=None):
             raise ConditionError("platen", i, f"boundary \"{p.boundary}\" "
                                  f"{COMPONENTS[component_index(p.component, 3)]} is "
                                  f"also held by a [[dirichlet]] or another platen")
-        ties.append(k)
+        ties.append(np.unique(k))  # sorted: its first dof stands for the platen
     values = [np.zeros(t.size) for t in ties]
     if periodic:
         try:

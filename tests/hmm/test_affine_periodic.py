@@ -279,3 +279,20 @@ def test_affine_boundaries_are_load_displacement_curves():
                               {"boundary": "right", "component": "y", "gradient": 0.01},
                               {"boundary": "left", "value": -0.001, "component": "x"}]})
     assert driven_components(problem, 2) == [("top", 0), ("right", 1), ("left", 0)]
+
+
+def test_periodic_cube_ties_its_eight_corners_and_returns_the_affine_field():
+    macro = hmm.Macro(hmm.structured_mesh("hex1", [1.0, 0.5, 0.5], [2, 2, 2]), "hex1")
+    g = np.array([[1e-3, 2e-3, 0.0], [0.0, -5e-4, 1e-3], [3e-4, 0.0, 2e-4]])
+    sup = hmm.supports(macro, [hmm.Dirichlet(point=[0.0, 0.0, 0.0], gradient=0.0)],
+                       periodic=[hmm.Periodic("left", "right"),
+                                 hmm.Periodic("bottom", "top"),
+                                 hmm.Periodic("front", "back")], gradient=g)
+    corner = {len(t) for t in sup.ties}
+    assert max(corner) == 8 and sup.ties[0][0] in sup.dofs  # the held corner leads
+    farm = hmm.SerialFarm([hmm.LinearElastic(1e8, 0.3, dim=3) for _ in range(macro.n_gp)])
+    solver = hmm.Solver(macro, farm, sup, settings=hmm.SolverSettings(
+        tol_residual=1e-11, tol_displacement=1e-11, aitken=False))
+    solver.advance(1.0)
+    np.testing.assert_allclose(macro.nodal_displacement(solver.u),
+                               macro.mesh.p.T @ g.T, rtol=0, atol=1e-15)

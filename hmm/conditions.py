@@ -111,6 +111,8 @@ class Dirichlet:
                 raise ValueError("needs a component (or a gradient)")
             if self.origin is not None:
                 raise ValueError("origin applies with a gradient only")
+        elif self.value != 0.0:
+            raise ValueError("takes a value or a gradient, not both")
         comps = range(d) if self.component is None else \
             [component_index(self.component, d)]
         if self.boundary is not None:

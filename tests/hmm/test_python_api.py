@@ -109,6 +109,8 @@ def unit_macro():
      r"^dirichlet #1: point = \[0.3, 0.0\] is not a vertex of the mesh$"),
     ({"dirichlet": [hmm.Dirichlet("top")]},
      r"^dirichlet #1: needs a component \(or a gradient\)$"),
+    ({"dirichlet": [hmm.Dirichlet("top", "x", value=0.1, gradient=0.01)]},
+     r"^dirichlet #1: takes a value or a gradient, not both$"),
     ({"dirichlet": [hmm.Dirichlet("top", "z")]},
      r"^dirichlet #1: component 'z' does not exist in 2D \(x, y or 0..1\)$"),
     ({"dirichlet": [hmm.Dirichlet("top", gradient=[[1.0, 0.0]])]},

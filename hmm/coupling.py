@@ -107,6 +107,10 @@ class Supports:
     #: optional ``{name: {component: dofs}}``: the degrees of freedom whose
     #: reaction each support reports (each prescribed dof in one support at most)
     held: dict = None
+    #: per group of ``ties`` (or empty: none), each member's prescribed offset [m]
+    #: from the group's first at load factor 1, ramped like ``values``: the jumps
+    #: ``G L`` of periodic boundaries (:mod:`hmm.periodic`); zero for a platen
+    tie_values: tuple = ()
 
     @classmethod
     def from_conditions(cls, conditions, boundaries=None, ties=()):
@@ -167,14 +171,26 @@ class Supports:
         return (np.asarray(self.path(t + h), dtype=np.float64)
                 - np.asarray(self.path(t), dtype=np.float64))
 
+    def prescribe(self, du, t, h):
+        """Write into ``du`` (n_dofs,) the change from load factor ``t`` to ``t + h``
+        of the prescribed values and of the tied offsets (periodic jumps): the
+        prescribed part of a step's first guess."""
+        du[self.dofs] = self.increment(t, h)
+        for group, offset in zip(self.ties if self.tie_values else (), self.tie_values,
+                                 strict=True):
+            du[group[1:]] = h * np.asarray(offset)[1:]
+        return du
+
 
 def tie_map(n, groups, fixed):
     """``(T, keep)`` for degrees of freedom ``groups`` that move as one: ``u = T
     u_r``, ``T`` (n, m) sparse, ``keep`` (m,) the full index of each reduced one
-    (the first of a group stands for it). ``fixed`` dofs may not be tied."""
-    groups = [np.unique(np.asarray(g, dtype=np.int64)) for g in groups]
+    (the first of a group stands for it). Only the first of a group may be one of the
+    ``fixed`` dofs (then the whole group follows it)."""
+    groups = [np.asarray(list(dict.fromkeys(np.asarray(g, dtype=np.int64).tolist())),
+                         dtype=np.int64) for g in groups]
     slaves = np.concatenate([g[1:] for g in groups]) if groups else np.zeros(0, int)
-    if np.intersect1d(np.concatenate(groups), fixed).size:
+    if np.intersect1d(slaves, fixed).size:
         raise ValueError("a tied (platen) boundary also has a prescribed displacement "
                          "in the same component")
     if np.unique(slaves).size != slaves.size or np.intersect1d(
@@ -193,15 +209,20 @@ def tie_map(n, groups, fixed):
 
 def linear_solve(k, rhs, fixed, x=None, tie=None):
     """Solve ``k du = rhs`` with ``du`` = ``x`` on the ``fixed`` dofs (zero without
-    ``x``), through the reduced system ``T^T k T`` of a :func:`tie_map`."""
+    ``x``), through the reduced system ``T^T k T`` of a :func:`tie_map`: ``du = T
+    du_r + s``, ``s`` the offsets of the tied dofs from their group's first, read
+    from ``x`` (the jumps of periodic boundaries; zero without ``x``)."""
     if tie is None:
         return solve(*condense(k, rhs, x=x, D=fixed))
     t, keep = tie
     pos = np.full(k.shape[0], -1)
     pos[keep] = np.arange(keep.size)
     kr = (t.T @ k @ t).tocsr()
-    xr = None if x is None else x[keep]
-    return t @ solve(*condense(kr, t.T @ rhs, x=xr, D=pos[fixed]))
+    if x is None:
+        return t @ solve(*condense(kr, t.T @ rhs, D=pos[fixed]))
+    s = np.array(x, dtype=np.float64)
+    s[keep] = 0.0
+    return t @ solve(*condense(kr, t.T @ (rhs - k @ s), x=x[keep], D=pos[fixed])) + s
 
 
 def free_part(r, free, tie=None):
@@ -295,8 +316,14 @@ class Solver:
         thickness)]: the internal force that external loads do not balance (on the
         current configuration under finite kinematics), summed over the degrees of
         freedom the support holds (:meth:`Supports.owned`); a component it does not
-        hold is zero."""
+        hold is zero. A held degree of freedom that stands for a tied group (a point
+        support at a corner of periodic boundaries) carries the group's force."""
         r = self._unbalanced()
+        if self._tie is not None:  # each group's force on its first member
+            t, keep = self._tie
+            full = np.zeros_like(r)
+            full[keep] = t.T @ r
+            r = full
         out = {}
         for name, held in self._held.items():
             f = np.zeros(self.macro.dim)
@@ -360,8 +387,7 @@ class Solver:
         macro, farm, st = self.macro, self.farm, self.settings
         sup = self.supports
         t1 = self.t + h
-        du = np.zeros(macro.n_dofs)
-        du[sup.dofs] = sup.increment(self.t, h)
+        du = sup.prescribe(np.zeros(macro.n_dofs), self.t, h)
         # predictor from the committed tangents, on the committed configuration
         k_c = self.stiffness(self.tangent, self.sigma, self.u, t1)
         r_c = macro.internal_force(self.sigma, self.u) - self.f_ext(t1)

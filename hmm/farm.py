@@ -309,6 +309,18 @@ class SerialFarm:
             m.load(read(g))
 
 
+def make_farm(n, dim, factory):
+    """A farm of the micro models ``factory(g)`` of ``n`` Gauss points ``g = 0..n-1``
+    (each ``dim``-dimensional): an :class:`MPIFarm` when this process is one of several
+    MPI ranks (every rank must call this, and every rank but 0 then calls
+    :meth:`MPIFarm.serve`), else a :class:`SerialFarm`. Under MPI each rank builds only
+    the models of the points it owns."""
+    _, comm = mpi_world()
+    if comm is not None:
+        return MPIFarm(comm, n, dim, factory)
+    return SerialFarm([factory(g) for g in range(n)])
+
+
 class MPIFarm:
     """The Gauss points spread over the ranks of ``comm`` in contiguous blocks.
 

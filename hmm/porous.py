@@ -366,6 +366,8 @@ class BiotSolver(Solver):
 
     def __init__(self, porous, farm, supports, schedule, f_const=None, f_ramp=None,
                  settings=None, coupling="monolithic"):
+        if supports.tie_values:
+            raise ValueError("a saturated problem takes no periodic boundaries")
         super().__init__(porous.macro, farm, supports, f_const, f_ramp, settings)
         if coupling not in COUPLINGS:
             raise ValueError(f"coupling must be \"monolithic\" or \"fixed_stress\", got "

@@ -26,6 +26,15 @@ Layout (SI units; ``d`` is ``[mesh] dim``)::
     point = [0.025, 0.0]           # [m]
     component = "x"
 
+    [[dirichlet]]                  # an affine displacement u = G (x - origin),
+    boundary = "top"               # ramped: every component (or only `component`)
+    gradient = [[0.0, 0.01], [0.0, 0.0]]
+    origin = [0.0, 0.0]            # [m] optional, default 0
+
+    [[periodic]]                   # opposite boundaries tied: u(x + L) = u(x) + G L
+    boundary = "left"              # for each node x of boundary and its image
+    image = "right"                # x + L on image (hold one node by a point)
+
     [[platen]]                     # a rigid frictionless platen: the boundary's
     boundary = "top"               # component moves as one, pushed by its loads
     component = "y"
@@ -51,6 +60,7 @@ Layout (SI units; ``d`` is ``[mesh] dim``)::
 
     [load]
     steps = 10                     # load steps (each may be cut and retried)
+    gradient = [[0.0, 0.01], [0.0, 0.0]]  # G of the [[periodic]] pairs, ramped
 
     [fluid]                        # a saturated problem (Biot u-p, optional)
     permeability = 1e-12           # [m^2] a number or a d x d tensor
@@ -105,6 +115,20 @@ from dem.io.scene import REQUIRED, Key, Range, SceneError, Section, read_toml, v
 from dem.io.scene import schema_markdown as _markdown
 from dem.limits import PARTICLES, Limit, LimitError, check_particle_scales
 
+from .conditions import (
+    BodyForce,
+    ConditionError,
+    Dirichlet,
+    Periodic,
+    Platen,
+    Pressure,
+    Traction,
+    cut_boundary,
+    external_forces,
+    supports,
+    vertex_at,
+)
+
 POSITIVE = Range(0.0, lo_closed=False)
 NONNEGATIVE = Range(0.0)
 COMPONENTS = ("x", "y", "z")
@@ -150,15 +174,36 @@ SCHEMA = {
         "lo": Key("vector", "m", default=REQUIRED, doc="Lower corner of the box."),
         "hi": Key("vector", "m", default=REQUIRED, doc="Upper corner of the box."),
     }),
-    "dirichlet": Section(doc="Prescribed displacements, ramped with the load factor.",
-                         array=True, keys={
+    "dirichlet": Section(doc="Prescribed displacements, ramped with the load factor: a "
+                             "uniform `value` in one component, or an affine "
+                             "displacement u = G (x - origin) (`gradient`), in every "
+                             "component or in `component` only (x the initial "
+                             "position of each node).", array=True, keys={
         "boundary": Key("str", doc="Named boundary of the mesh (this or `point`)."),
         "point": Key("vector", "m", doc="A vertex of the mesh (this or `boundary`): a "
                                          "point support, e.g. the middle of a smooth "
                                          "base held against rigid sliding."),
-        "component": Key("str", default=REQUIRED, choices=COMPONENTS,
-                         doc="Displacement component."),
+        "component": Key("str", choices=COMPONENTS,
+                         doc="Displacement component (required with `value`; with "
+                             "`gradient`, default every component)."),
         "value": Key("float", "m", default=0.0, doc="Value at the end of the schedule."),
+        "gradient": Key("tensor", doc="The displacement gradient G of an affine "
+                                      "displacement u = G (x - origin) at the end of "
+                                      "the schedule, instead of `value`: d rows of d "
+                                      "numbers (a number g: g I)."),
+        "origin": Key("vector", "m", doc="The point an affine displacement leaves in "
+                                         "place (default 0)."),
+    }),
+    "periodic": Section(doc="Periodic boundaries: `boundary` and its `image` (the same "
+                            "nodes shifted by L) are tied node by node, u(x + L) = "
+                            "u(x) + G L, with G the average displacement gradient "
+                            "[load] gradient; a corner on two pairs is tied to all its "
+                            "images. Hold one node against rigid translation with a "
+                            "point [[dirichlet]] in every component.", array=True,
+                        keys={
+        "boundary": Key("str", default=REQUIRED, doc="Named boundary of the mesh."),
+        "image": Key("str", default=REQUIRED,
+                     doc="The opposite boundary, `boundary` shifted by L."),
     }),
     "platen": Section(doc="A rigid, frictionless platen: one displacement component "
                           "of a boundary is a single unknown, pushed by the loads on "
@@ -195,6 +240,10 @@ SCHEMA = {
     }),
     "load": Section(doc="The load schedule.", keys={
         "steps": Key("int", default=10, range=Range(1.0), doc="Number of load steps."),
+        "gradient": Key("tensor", doc="The average displacement gradient G of the "
+                                      "[[periodic]] pairs at the end of the schedule, "
+                                      "d rows of d numbers (a number g: g I; default "
+                                      "0)."),
     }),
     "micro": Section(doc="The micro model at every Gauss point.", required=True,
                      variant="model", keys={
@@ -416,17 +465,14 @@ def validate_problem(data, source="<problem>", base_dir="."):
         ctx.fail(f"integration applies to {', '.join(QUADRATURE_CHOICE)}, not to "
                  f"element \"{m['element']}\"", "[mesh]")
     for i, c in enumerate(out["dirichlet"]):
-        if (c["boundary"] is None) == (c["point"] is None):
-            ctx.fail("needs a boundary or a point (one of them)", f"[[dirichlet]] #{i + 1}")
-        if COMPONENTS.index(c["component"]) >= m["dim"]:
-            ctx.fail(f"component \"{c['component']}\" does not exist in {m['dim']}D",
-                     f"[[dirichlet]] #{i + 1}")
+        _check_dirichlet(ctx, c, data["dirichlet"][i], m["dim"], f"[[dirichlet]] #{i + 1}")
     for i, c in enumerate(out["platen"]):
         if COMPONENTS.index(c["component"]) >= m["dim"]:
             ctx.fail(f"component \"{c['component']}\" does not exist in {m['dim']}D",
                      f"[[platen]] #{i + 1}")
     if not out["dirichlet"]:
         ctx.fail("a quasi-static problem needs supports: add [[dirichlet]] conditions")
+    _check_periodic(ctx, out, data)
     if out["imperfection"] and out["micro"]["model"] not in ("dem", "adaptive"):
         ctx.fail(f"needs [micro] model = \"dem\" or \"adaptive\", not "
                  f"\"{out['micro']['model']}\"", "[[imperfection]] #1")
@@ -454,6 +500,41 @@ def validate_problem(data, source="<problem>", base_dir="."):
             ctx.fail(f"tangent = \"perturbation\" with relax = false: "
                      f"{PERTURBATION_NEEDS_RELAX}", "[micro]")
     return out
+
+
+def _check_dirichlet(ctx, c, raw, dim, where):
+    """One [[dirichlet]]: a boundary or a point; a component that exists; a value or
+    a gradient; an origin with a gradient only."""
+    if (c["boundary"] is None) == (c["point"] is None):
+        ctx.fail("needs a boundary or a point (one of them)", where)
+    if c["gradient"] is None:
+        if c["component"] is None:
+            ctx.fail("needs a component (x, y or z) with a value, or a gradient", where)
+        if c["origin"] is not None:
+            ctx.fail("origin applies to an affine displacement: add a gradient", where)
+    elif "value" in raw:
+        ctx.fail("takes a value or a gradient, not both", where)
+    if c["component"] is not None and COMPONENTS.index(c["component"]) >= dim:
+        ctx.fail(f"component \"{c['component']}\" does not exist in {dim}D", where)
+
+
+def _check_periodic(ctx, out, data):
+    """[[periodic]] pairs name two different boundaries, each in one pair; [load]
+    gradient needs them; no saturated problem."""
+    seen = {}
+    for i, c in enumerate(out["periodic"]):
+        where = f"[[periodic]] #{i + 1}"
+        if c["boundary"] == c["image"]:
+            ctx.fail(f"boundary and image are both \"{c['boundary']}\"", where)
+        for name in (c["boundary"], c["image"]):
+            if name in seen:
+                ctx.fail(f"\"{name}\" is in [[periodic]] #{seen[name] + 1} already", where)
+            seen[name] = i
+    if out["load"]["gradient"] is not None and not out["periodic"]:
+        ctx.fail("gradient applies to [[periodic]] boundaries: add them (an affine "
+                 "displacement of a boundary is a [[dirichlet]] gradient)", "[load]")
+    if out["periodic"] and data.get("fluid") is not None:
+        ctx.fail("a saturated problem takes no periodic boundaries", "[[periodic]] #1")
 
 
 def _check_micro_sizes(ctx, out, dim):
@@ -544,7 +625,7 @@ def build_macro(problem):
         raise SceneError(f"{src}: [mesh] {exc}") from None
     mesh = _cut_boundaries(problem, mesh)
     known = set(mesh.boundaries or {})
-    for kind in ("dirichlet", "pressure", "traction", "drainage", "platen"):
+    for kind in ("dirichlet", "pressure", "traction", "drainage", "platen", "periodic"):
         for i, c in enumerate(problem[kind]):
             if c.get("point") is not None:
                 if vertex_at(mesh, c["point"]) is None:
@@ -555,6 +636,11 @@ def build_macro(problem):
                 raise SceneError(f"{src}: [[{kind}]] #{i + 1} boundary "
                                  f"\"{c['boundary']}\" is not a boundary of the mesh "
                                  f"(known: {', '.join(sorted(known)) or 'none'})")
+    for i, c in enumerate(problem["periodic"]):
+        if c["image"] not in known:
+            raise SceneError(f"{src}: [[periodic]] #{i + 1} image \"{c['image']}\" is not "
+                             f"a boundary of the mesh (known: "
+                             f"{', '.join(sorted(known)) or 'none'})")
     macro = Macro(mesh, m["element"], problem["solver"]["kinematics"], m["integration"])
     mc = problem["micro"]
     if mc["model"] in ("dem", "adaptive") and mc["packing"] is None:
@@ -566,9 +652,10 @@ def build_macro(problem):
     return macro
 
 
-def read_mesh(path, where):
-    """A scikit-fem mesh from a file meshio reads; a :class:`SceneError` starting
-    with ``where`` for anything else.
+def read_mesh(path, where=None):
+    """A scikit-fem mesh (its named boundaries included: gmsh physical groups, the
+    sets of a file skfem saved) from a file meshio reads; a :class:`SceneError`
+    starting with ``where`` (if given) for anything else.
 
     meshio prints to stdout and calls ``sys.exit`` on a file it cannot parse: its
     output is captured and turned into the one-line error.
@@ -578,8 +665,9 @@ def read_mesh(path, where):
 
     from skfem import Mesh
 
+    lead = "" if where is None else f"{where} "
     if Path(path).is_dir():
-        raise SceneError(f"{where} mesh file {path} is a directory")
+        raise SceneError(f"{lead}mesh file {path} is a directory")
     said = io.StringIO()
     try:
         with contextlib.redirect_stdout(said), contextlib.redirect_stderr(said):
@@ -589,94 +677,41 @@ def read_mesh(path, where):
             "meshio gave up on it"
     except Exception as err:  # noqa: BLE001 - meshio raises many kinds
         reason = f"{type(err).__name__}: {err}"
-    raise SceneError(f"{where} cannot read mesh file {path}: {reason}")
-
-
-def vertex_at(mesh, point):
-    """Index of the mesh vertex at ``point`` (within 1e-9 of the mesh size), or
-    None."""
-    dist = np.linalg.norm(mesh.p.T - np.asarray(point, dtype=np.float64), axis=1)
-    v = int(np.argmin(dist))
-    return v if dist[v] <= 1e-9 * float(np.ptp(mesh.p, axis=1).max()) else None
+    raise SceneError(f"{lead}cannot read mesh file {path}: {reason}")
 
 
 def _cut_boundaries(problem, mesh):
-    """The mesh with the ``[[boundary]]`` parts added to its named boundaries."""
-    src = problem["source"]
-    scale = float(np.ptp(mesh.p, axis=1).max())
+    """The mesh with the ``[[boundary]]`` parts added to its named boundaries
+    (:func:`hmm.conditions.cut_boundary`)."""
     for i, b in enumerate(problem["boundary"]):
-        where = f"[[boundary]] #{i + 1}"
-        known = mesh.boundaries or {}
-        if b["of"] not in known:
-            raise SceneError(f"{src}: {where} of = \"{b['of']}\" is not a boundary of "
-                             f"the mesh (known: {', '.join(sorted(known)) or 'none'})")
-        if b["name"] in known:
-            raise SceneError(f"{src}: {where} name = \"{b['name']}\" is taken")
-        facets = np.asarray(known[b["of"]])
-        mid = mesh.p[:, mesh.facets[:, facets]].mean(axis=1).T
-        tol = 1e-9 * scale
-        inside = np.all((mid >= np.asarray(b["lo"]) - tol)
-                        & (mid <= np.asarray(b["hi"]) + tol), axis=1)
-        if not inside.any():
-            raise SceneError(f"{src}: {where} \"{b['name']}\": no facet of "
-                             f"\"{b['of']}\" has its midpoint in [lo, hi]")
-        mesh = mesh.with_boundaries({b["name"]: facets[inside]})
+        try:
+            mesh = cut_boundary(mesh, b["name"], b["of"], b["lo"], b["hi"])
+        except ValueError as err:
+            raise SceneError(f"{problem['source']}: [[boundary]] #{i + 1} {err}") from None
     return mesh
 
 
 def build_loads(problem, macro):
     """Supports, the constant and ramped external force vectors (dead loads), and the
-    configuration-dependent loads of finite kinematics (:mod:`hmm.loads`)."""
-    from .coupling import Supports
-    from .loads import CurrentBodyForce, CurrentTraction, FollowerPressure
-
-    conditions = []
-    for c in problem["dirichlet"]:
-        comp = COMPONENTS.index(c["component"])
-        if c["point"] is None:
-            name, k = c["boundary"], macro.dofs(c["boundary"], comp)
-        else:
-            name = "point (" + ", ".join(f"{x:g}" for x in c["point"]) + ")"
-            k = macro.basis.nodal_dofs[comp, [vertex_at(macro.mesh, c["point"])]]
-        conditions.append((name, comp, k, c["value"]))
-    # a corner in two conditions: the first one's value, and its reaction
-    supports = Supports.from_conditions(
-        conditions, tuple(dict.fromkeys(c["boundary"] for c in problem["dirichlet"]
-                                        if c["boundary"] is not None)))
-    dofs = supports.dofs
-    ties = []
-    for i, c in enumerate(problem["platen"]):
-        k = macro.dofs(c["boundary"], COMPONENTS.index(c["component"]))
-        if np.intersect1d(k, dofs).size or any(np.intersect1d(k, t).size for t in ties):
-            raise SceneError(f"{problem['source']}: [[platen]] #{i + 1} boundary "
-                             f"\"{c['boundary']}\" {c['component']} is also held by a "
-                             f"[[dirichlet]] or another platen")
-        ties.append(k)
-    supports.ties = tuple(ties)
-    f_const = np.zeros(macro.n_dofs)
-    f_ramp = np.zeros(macro.n_dofs)
-    loads = []
-    for p in problem["pressure"]:
-        if macro.finite and p["follower"]:
-            loads.append(FollowerPressure(p["boundary"], float(p["value"]), p["ramp"]))
-            continue
-        f = macro.pressure_force(p["boundary"], p["value"])
-        if p["ramp"]:
-            f_ramp += f
-        else:
-            f_const += f
-    for t in problem["traction"]:
-        if macro.finite and t["per"] == "current":
-            loads.append(CurrentTraction(t["boundary"], tuple(t["value"])))
-        else:
-            f_ramp += macro.traction_force(t["boundary"], t["value"])
+    configuration-dependent loads of finite kinematics: the problem's conditions as
+    the objects of :mod:`hmm.conditions`, through :func:`hmm.conditions.supports` and
+    :func:`hmm.conditions.external_forces`."""
+    dirichlet = [Dirichlet(c["boundary"], c["component"], c["value"], c["gradient"],
+                           c["origin"], c["point"]) for c in problem["dirichlet"]]
+    platens = [Platen(c["boundary"], c["component"]) for c in problem["platen"]]
+    periodic = [Periodic(c["boundary"], c["image"]) for c in problem["periodic"]]
+    try:
+        sup = supports(macro, dirichlet, platens, periodic, problem["load"]["gradient"])
+    except ConditionError as err:
+        where = f"[[{err.kind}]]" + ("" if err.index is None else f" #{err.index + 1}")
+        raise SceneError(f"{problem['source']}: {where} {err.reason}") from None
+    loads = [Pressure(p["boundary"], p["value"], p["ramp"], p["follower"])
+             for p in problem["pressure"]]
+    loads += [Traction(t["boundary"], tuple(t["value"]), t["per"])
+              for t in problem["traction"]]
     b = problem["body_force"]
-    if any(b["value"]):
-        if macro.finite and b["per"] == "current":
-            loads.append(CurrentBodyForce(tuple(b["value"])))
-        else:
-            f_ramp += macro.body_force(b["value"])
-    return supports, f_const, f_ramp, tuple(loads)
+    loads.append(BodyForce(tuple(b["value"]), b["per"]))
+    return (sup, *external_forces(macro, loads))
 
 
 def build_porous(problem, macro):
@@ -712,13 +747,10 @@ def build_farm(problem, macro, progress=None):
     DEM points share packings: each distinct packing is generated (or read) once per
     rank and copied into every point that uses it.
     """
-    from .farm import MPIFarm, SerialFarm, mpi_world
+    from .farm import make_farm
 
-    factory = model_factory(problem, macro.dim, progress, macro.gauss_points())
-    _, comm = mpi_world()
-    if comm is not None:
-        return MPIFarm(comm, macro.n_gp, macro.dim, factory)
-    return SerialFarm([factory(g) for g in range(macro.n_gp)])
+    return make_farm(macro.n_gp, macro.dim,
+                     model_factory(problem, macro.dim, progress, macro.gauss_points()))
 
 
 def build_models(problem, n, dim, progress=None, points=None):

@@ -68,8 +68,7 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
         + (f" + {porous.n_p} pore pressures ({porous.p_element})" if porous else "")
         + f", {macro.n_gp} Gauss points"
         + (f", {comm.Get_size()} MPI ranks" if comm else ""))
-    driven = [(c["boundary"], "xyz".index(c["component"])) for c in problem["dirichlet"]
-              if c["value"] != 0.0 and c["boundary"] is not None]
+    driven = driven_components(problem, macro.dim)
     ck = None
     out, refused = None, None
     try:  # every rank opens the checkpoint: each reads its own points from it
@@ -114,6 +113,25 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     return _solve_and_close((problem, macro, farm, supports, (f_const, f_ramp, loads),
                              out, progress, say, t0, ck, stop_after, (porous, schedule)),
                             comm)
+
+
+def driven_components(problem, dim):
+    """``[(boundary, component)]`` that a ``[[dirichlet]]`` moves (a non-zero value,
+    or a gradient with a non-zero row): the curves of ``load_displacement.png``."""
+    from .conditions import gradient_tensor
+
+    out = []
+    for c in problem["dirichlet"]:
+        if c["boundary"] is None:
+            continue
+        comps = range(dim) if c["component"] is None else ["xyz".index(c["component"])]
+        if c["gradient"] is None:
+            moved = [k for k in comps if c["value"] != 0.0]
+        else:
+            g = gradient_tensor(c["gradient"], dim)
+            moved = [k for k in comps if np.any(g[k] != 0.0)]
+        out += [(c["boundary"], k) for k in moved if (c["boundary"], k) not in out]
+    return out
 
 
 #: the files a run writes into its directory

@@ -28,9 +28,30 @@ FORMAT = "hmm.checkpoint"
 VERSION = 1
 
 
+#: keys added to problem files after checkpoints of this version were first written,
+#: as (section, key, default): a key at its default is left out of the digest, so that
+#: a checkpoint of the same problem written before the key existed still restarts
+#: (section None: a top-level key; a list section: every entry)
+ADDED_KEYS = (("dirichlet", "gradient", None), ("dirichlet", "origin", None),
+              (None, "periodic", []), ("load", "gradient", None))
+
+
 def problem_digest(problem):
-    """A digest of the validated problem that ignores where output goes."""
+    """A digest of the validated problem that ignores where output goes (and the
+    :data:`ADDED_KEYS` at their defaults)."""
     data = {k: v for k, v in problem.items() if k not in ("output", "source")}
+    for section, key, default in ADDED_KEYS:
+        if section is None:
+            if key in data and data[key] == default:
+                data = {k: v for k, v in data.items() if k != key}
+            continue
+        entries = data.get(section)
+        if isinstance(entries, dict):
+            data[section] = {k: v for k, v in entries.items()
+                             if not (k == key and v == default)}
+        elif isinstance(entries, list):
+            data[section] = [{k: v for k, v in e.items() if not (k == key and v == default)}
+                             for e in entries]
     text = json.dumps(data, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 

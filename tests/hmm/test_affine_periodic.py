@@ -8,6 +8,8 @@ u(x + L) = u(x) + G L returns the affine field when uniform, and with a soft
 inclusion a fluctuation u - G x that is periodic, with the average strain sym G.
 """
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -21,6 +23,8 @@ from hmm.problem import (
     validate_problem,
 )
 from hmm.run import run_problem
+
+ROOT = Path(__file__).resolve().parents[2]
 
 SIDES = {2: ("left", "right", "bottom", "top"),
          3: ("left", "right", "bottom", "top", "front", "back")}
@@ -296,3 +300,27 @@ def test_periodic_cube_ties_its_eight_corners_and_returns_the_affine_field():
     solver.advance(1.0)
     np.testing.assert_allclose(macro.nodal_displacement(solver.u),
                                macro.mesh.p.T @ g.T, rtol=0, atol=1e-15)
+
+
+def test_keys_added_at_their_defaults_leave_the_checkpoint_digest_alone():
+    """A checkpoint written before affine and periodic boundaries existed restarts: the
+    new keys at their defaults do not change the problem's digest; set, they do."""
+    import copy
+
+    from hmm.checkpoint import ADDED_KEYS, problem_digest
+    from hmm.problem import load_problem
+
+    problem = load_problem(ROOT / "examples" / "biaxial.toml")
+    older = copy.deepcopy(problem)  # the same problem as an older version validated it
+    for section, key, _ in ADDED_KEYS:
+        if section is None:
+            older.pop(key)
+        elif isinstance(older[section], dict):
+            older[section].pop(key)
+        else:
+            for entry in older[section]:
+                entry.pop(key)
+    assert problem_digest(problem) == problem_digest(older)
+    changed = copy.deepcopy(problem)
+    changed["load"]["gradient"] = [[0.0, 0.0], [0.0, -0.01]]
+    assert problem_digest(changed) != problem_digest(problem)

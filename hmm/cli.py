@@ -260,8 +260,9 @@ def _solve(problem, args, prog):
     print(f"{summary['steps']} load steps, {sum(its)} Newton iterations "
           f"({min(its)}-{max(its)} per step), {summary['cuts']} step cuts, "
           f"{summary['trials']} farm trials; solved in {summary['solve_time']:.1f} s")
-    print(f"Gauss points that ran DEM: {summary['dem_points']} of "
-          f"{summary['gauss_points']}")
+    if problem["micro"]["model"] in ("dem", "adaptive"):  # analytic models never run DEM
+        print(f"Gauss points that ran DEM: {summary['dem_points']} of "
+              f"{summary['gauss_points']}")
     if "p" in summary:  # a saturated problem
         print(f"time {summary['time']:.6g} s, pore pressure {summary['p'].min():.4g} "
               f"to {summary['p'].max():.4g} Pa")

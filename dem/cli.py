@@ -153,7 +153,7 @@ def _cmd_run(args):
         if writer is not None:
             writer(sim)  # the initial frame; the run adds one every `every` steps
         t0 = time.perf_counter()
-        sim.run(n_steps, progress=progress)
+        rest = _run(sim, n_steps, scene["simulation"]["rest_speed"], progress, writer)
     except SimulationError as exc:
         return _error(f"simulation failed: {exc}", EXIT_FAILED)
     except KeyboardInterrupt:
@@ -162,14 +162,30 @@ def _cmd_run(args):
         if writer is not None:
             writer.close()
     wall = time.perf_counter() - t0
+    n_steps = sim.step
     rate = f" ({n_steps / wall:.3g} steps/s)" if wall > 0 and n_steps else ""
     print(f"dem run {args.scene}: {_bodies_line(sim)}\n"
-          f"  steps      {n_steps} x dt = {sim.dt:.4g} s = {sim.time:.4g} s simulated\n"
+          f"  steps      {n_steps} x dt = {sim.dt:.4g} s = {sim.time:.4g} s simulated{rest}\n"
           f"  wall time  {wall:.3g} s{rate} + {t0 - t_start:.3g} s start-up\n"
           f"  output     {out_file if writer is not None else 'none (no HDF5 writer)'}")
     if writer is not None and writer.xdmf_paths:  # what ParaView and meshio open
         print("  xdmf       " + ", ".join(Path(p).name for p in writer.xdmf_paths))
     return EXIT_OK
+
+
+def _run(sim, n_steps, rest_speed, progress, writer):
+    """Run the scene's steps, or until rest (the state at rest is the last frame);
+    the words the summary adds."""
+    if rest_speed is None:
+        sim.run(n_steps, progress=progress)
+        return ""
+    from .rest import run_until_rest
+
+    _, at_rest = run_until_rest(sim, n_steps, rest_speed, progress=progress)
+    if writer is not None and not writer.trigger(sim.step):
+        writer(sim)
+    return (f", at rest (below {rest_speed:g} m/s)" if at_rest
+            else f", not at rest (still above {rest_speed:g} m/s)")
 
 
 def _dry_run(args, sim, out_file, n_steps):

@@ -175,7 +175,11 @@ SCHEMA = {
     "simulation": Section(doc="Time stepping and body forces.", required=True, keys={
         "dim": Key("int", default=3, choices=(2, 3), doc="Dimension of the scene."),
         "steps": Key("int", default=REQUIRED, range=NONNEGATIVE,
-                     doc="Number of time steps to run."),
+                     doc="Number of time steps to run (with rest_speed: the most)."),
+        "rest_speed": Key("float", "m/s", range=POSITIVE,
+                          doc="Stop before steps once every particle is slower than "
+                              "this, spin included (the surface speed omega r), "
+                              "checked every 100 steps; default: run every step."),
         "dt": Key("float", "s", range=POSITIVE,
                   doc="Time step; default DT_FACTOR x the critical time step dt_crit "
                       "(or less with heavy dashpots). A dt above the stable time step "

@@ -254,6 +254,46 @@ def test_valid_scene_runs(tmp_path, capsys):
         assert code == 0 and "5 x dt" in out, err
 
 
+def test_a_scene_stops_at_rest(tmp_path, capsys):
+    """rest_speed ends the run at the first check where every sphere is slower; the
+    state at rest is the last frame; without rest, steps is the cap."""
+    from dem.io import read_frame
+
+    scene = base_scene()
+    scene["simulation"].update(steps=20000, rest_speed=0.01, damping=0.3)
+    path = write_scene(tmp_path, scene)
+    code, out, err = run_cli(["run", path, "-o", tmp_path / "out"], capsys)
+    assert code == 0, err
+    steps = int(out.split("steps")[1].split(" x dt")[0])
+    assert 0 < steps < 20000 and steps % 100 == 0
+    assert ", at rest (below 0.01 m/s)" in out
+    last = read_frame(tmp_path / "out" / "scene.h5", -1)
+    assert last["step"] == steps
+    speed = np.linalg.norm(last["vel"], axis=1)
+    assert speed.max() < 0.01
+    # the same scene with a rest speed it cannot reach runs every step
+    scene["simulation"].update(steps=300, rest_speed=1e-12)
+    path = write_scene(tmp_path, scene, name="restless.toml")
+    code, out, err = run_cli(["run", path, "-o", tmp_path / "out2"], capsys)
+    assert code == 0, err
+    assert "300 x dt" in out and ", not at rest (still above 1e-12 m/s)" in out
+
+
+def test_largest_speed_counts_spin():
+    """A sphere rolling in place is not at rest: its surface moves at |omega| r."""
+    import dem
+    from dem.rest import largest_speed, run_until_rest
+
+    b = dem.Bodies.empty(3)
+    b.add_spheres([[0.0, 0.0, 0.01]], 0.01, density=2500.0)
+    b.add_plane([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], velocity=[5.0, 0.0, 0.0])
+    b.ang_vel[0] = [0.0, 3.0, 0.0]
+    sim = dem.Simulation(b, dem.LinearSpring(kn=1e4, kt=5e3, mu=0.5))
+    assert largest_speed(sim) == pytest.approx(0.03)  # the moving wall does not count
+    with pytest.raises(ValueError, match="speed must be > 0"):
+        run_until_rest(sim, 10, 0.0)
+
+
 def test_default_output_dir_and_dry_run(tmp_path, capsys, monkeypatch):
     monkeypatch.chdir(tmp_path)
     path = write_scene(tmp_path, base_scene(), name="drop.toml")

@@ -32,8 +32,8 @@ class Fields:
     points : (dim, n_vertices) float64
         [m], the initial mesh's vertices, as ``skfem.Mesh.p``.
     cells : (k, n_elems) int64
-        Vertex indices of each element, as ``skfem.Mesh.t`` (hexahedra in VTK's
-        vertex order, as the file stores them for ParaView).
+        The corner vertices of each element, as ``skfem.Mesh.t`` (the file keeps
+        hexahedra in VTK's order for ParaView; here they are in scikit-fem's).
     gauss_points : (n_gp, dim) float64
         [m], initial positions of the Gauss points (element by element).
     gauss_weights : (n_gp,) float64
@@ -78,6 +78,19 @@ class Fields:
     def __getitem__(self, name):
         return self.fields[name]
 
+    def mesh(self):
+        """The initial mesh as a linear scikit-fem mesh of the corner vertices
+        (``MeshTri``, ``MeshQuad``, ``MeshTet`` or ``MeshHex``), on which the nodal
+        fields (``displacement``) live."""
+        from skfem import MeshHex, MeshQuad, MeshTet, MeshTri
+
+        kinds = {(2, 3): MeshTri, (2, 4): MeshQuad, (3, 4): MeshTet, (3, 8): MeshHex}
+        kind = kinds.get((self.dim, self.cells.shape[0]))
+        if kind is None:
+            raise ValueError(f"{self.path}: no scikit-fem mesh of {self.cells.shape[0]}-"
+                             f"vertex cells in {self.dim}D")
+        return kind(self.points, self.cells)
+
     def __len__(self):
         return len(self.step)
 
@@ -104,7 +117,7 @@ def read_fields(path):
         ``batch.h5``), a version this reader does not know, misses a part, or a
         dataset declares more data than the file holds.
     """
-    from .io import FORMAT, RENAMED, VERSIONS, field_units
+    from .io import _HEX_ORDER, FORMAT, RENAMED, VERSIONS, field_units
 
     path = str(path)
     try:
@@ -115,10 +128,13 @@ def read_fields(path):
     with f:
         check_format(f, path, FORMAT, VERSIONS)
         try:
-            return _read(f, path, RENAMED, field_units)
-        except (KeyError, TypeError) as err:
+            out = _read(f, path, RENAMED, field_units)
+        except (KeyError, TypeError, IndexError) as err:
             raise ValueError(f"{path}: not a complete fields file "
                              f"({' '.join(str(err).split())})") from None
+    if out.dim == 3 and out.cells.shape[0] == 8:  # VTK's vertex order -> skfem's
+        out.cells = out.cells[np.argsort(_HEX_ORDER)]
+    return out
 
 
 def _read(f, path, renamed, field_units):

@@ -17,6 +17,7 @@ import dem
 import hmm
 from dem.io import read_frames, save_checkpoint, write_bodies
 from dem.io.meta import software
+from skfem import MeshQuad
 
 SCENE = """
 [simulation]
@@ -239,6 +240,9 @@ def test_read_fields_gives_back_what_was_written(hmm_run):
     np.testing.assert_allclose(r["pressure"], p.reshape(len(r), ne, -1).mean(axis=2),
                                rtol=1e-12)
     assert r.config["micro"]["young"] == 1e6
+    mesh = r.mesh()  # scikit-fem's mesh, on which the displacement lives
+    assert isinstance(mesh, MeshQuad) and np.array_equal(mesh.p, r.points)
+    assert r["displacement"].shape == (len(r), mesh.p.shape[1], 3)
 
 
 def test_readers_refuse_each_others_files_and_foreign_ones(hmm_run, dem_run, tmp_path):

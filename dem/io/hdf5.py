@@ -100,7 +100,7 @@ UNITS = (
     (r"(walls/)?id|kind|(xdmf/)?vertex|surface/(cells|body)|walls/xdmf/cells"
      r"|contacts/(i|j|is_wall)|contacts/xdmf/lines", ONE, None),
     (r"(xdmf/)?pos|walls/pos|surface/points|(walls|contacts)/xdmf/points"
-     r"|contacts/x[12]", "m", None),
+     r"|contacts/x\d", "m", None),
     (r"(xdmf/)?vel|surface/vel", "m/s", None),
     (r"xdmf/quat", ONE, "(w, x, y, z), rotation body to world"),
     (r"ang_vel", "rad/s", "counter-clockwise positive (right-handed about each axis)"),
@@ -120,7 +120,9 @@ def frame_units(dim, fields=None):
     per-body ``fields`` (``{name: unit}``)."""
     rot = (r"rot", "rad", "counter-clockwise positive") if dim == 2 else \
         (r"rot", ONE, "(w, x, y, z), rotation body to world")
-    extra = [(f"fields/{re.escape(k)}", u, None) for k, u in (fields or {}).items()]
+    # paths are looked up with their numbers as 0 (dem.io.meta.label): so are names
+    extra = [(f"fields/{re.escape(re.sub(r'[0-9]+', '0', k))}", u, None)
+             for k, u in (fields or {}).items()]
     return rules(*UNITS, rot, *extra)
 
 

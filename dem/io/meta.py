@@ -93,10 +93,15 @@ def check_format(f, path, fmt, versions):
     return version
 
 
+_DIGITS = re.compile(r"\d+")
+
+
 def rules(*table):
     """A list of compiled rules ``(pattern, unit, sign)``: ``pattern`` is a regular
     expression matched against a dataset's path inside the labelled group (the
-    whole path, ``re.fullmatch``); the first rule that matches gives the unit."""
+    whole path, ``re.fullmatch``); the first rule that matches gives the unit.
+    A rule must not tell one number from another (``\\d+``, never ``7``): numbers
+    in a path are all looked up as ``0``."""
     return [(re.compile(p), unit, sign) for p, unit, sign in table]
 
 
@@ -118,10 +123,14 @@ def label(group, table, prefix=""):
     by ``table`` (:func:`rules`) matched against ``prefix`` + the dataset's path
     relative to ``group``. A dataset no rule matches gets ``unit = "unknown"``
     (tests look for those)."""
+    seen = {}  # the rules do not tell numbers apart: one lookup per path shape
 
     def visit(name, obj):
         if isinstance(obj, h5py.Dataset) and "unit" not in obj.attrs:
-            found = unit_of(prefix + name, table)
+            shape = _DIGITS.sub("0", prefix + name)
+            if shape not in seen:
+                seen[shape] = unit_of(shape, table)
+            found = seen[shape]
             unit, sign = found if found is not None else ("unknown", None)
             obj.attrs["unit"] = unit
             if sign:

@@ -51,8 +51,9 @@ class Fields:
         ``{name: array}``: the load-displacement curve (every step),
         ``"load_factor"``, ``"displacement/<boundary>"``, ``"force/<boundary>"``, ...
     units : dict
-        ``{name: unit}`` of every name of ``fields`` and of ``curve`` (the latter as
-        ``"curve/<name>"``).
+        ``{name: unit}`` of every name of ``fields``, of ``curve`` (as
+        ``"curve/<name>"``) and of the mesh and Gauss points (as the file names them:
+        ``"mesh/points"``, ``"gauss/weights"``, ...).
     signs : dict
         ``{name: sign convention}``, where it matters ("tension positive",
         "compression positive", ...).
@@ -153,6 +154,8 @@ def _read(f, path, renamed, field_units):
                  read_bounded(f["mesh/cells"], "mesh/cells").T.copy(), gp,
                  read_bounded(f["gauss/weights"], "gauss/weights"),
                  np.zeros(0, np.int64), np.zeros(0))
+    for key in ("mesh/points", "mesh/cells", "gauss/points", "gauss/weights"):
+        _note(out, key, f[key], key, rules)
     names = sorted(f["steps"]) if "steps" in f else []
     frames = []
     for name in names:

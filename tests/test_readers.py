@@ -232,6 +232,7 @@ def test_read_fields_gives_back_what_was_written(hmm_run):
             assert np.array_equal(r.curve[key], f["curve"][key][()])
     assert r.units["stress_xx"] == "Pa" and r.signs["stress_xx"] == "tension positive"
     assert r.units["curve/force/top"] == "N/m" and r.units["displacement"] == "m"
+    assert r.units["gauss/weights"] == "m^2" and r.units["mesh/points"] == "m"
     # one convention: the pressure is minus the mean normal stress; compressed here
     sig = r["gauss/stress"]
     assert np.all(r["stress_yy"][1:] < 0.0) and np.all(r["pressure"][1:] > 0.0)

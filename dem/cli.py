@@ -141,7 +141,8 @@ def _cmd_run(args):
     if args.dry_run:
         return _dry_run(args, sim, out_file, n_steps)
     try:
-        writer = _open_writer(out_file, output, args.overwrite)
+        writer = _open_writer(out_file, output, args.overwrite,
+                              config=args.scene.read_text(errors="replace"))
     except OSError as exc:  # existing output, or the directory cannot be made
         return _error(exc, EXIT_USAGE)
     if writer is not None:
@@ -217,8 +218,9 @@ def _bodies_line(sim):
             f"({b.dim}D)")
 
 
-def _open_writer(path, output, overwrite):
-    """The HDF5 observer writing to ``path``, or None where no writer is available.
+def _open_writer(path, output, overwrite, config=None):
+    """The HDF5 observer writing to ``path``, or None where no writer is available;
+    ``config`` (the scene file's text) is stored in the file.
 
     Refuses (FileExistsError) to replace an existing HDF5 or XDMF file (the
     particles' or a companion, :func:`dem.io.xdmf.xdmf_files`) unless ``overwrite``.
@@ -235,4 +237,4 @@ def _open_writer(path, output, overwrite):
     path.parent.mkdir(parents=True, exist_ok=True)
     for p in existing:
         p.unlink()
-    return H5Writer(path, every=output.every, contacts=output.contacts)
+    return H5Writer(path, every=output.every, contacts=output.contacts, config=config)

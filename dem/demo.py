@@ -23,6 +23,7 @@ import numpy as np
 from ._jit import set_threads
 from .contact.laws import LinearSpring
 from .io import H5Writer
+from .io.hdf5 import save_figure
 from .observers import kinetic_energy
 from .shapes import Shape
 from .simulation import Simulation
@@ -134,7 +135,8 @@ def run_demo(out_dir="output/demo", n_spheres=300, seed=0, t_max=2.0,
     times, kinetic = [0.0], [0.0]
     released, at_rest, n_calm = 0.0, False, 0
     start = time.perf_counter()
-    with H5Writer(h5, every=chunk, contacts=True) as writer:
+    config = {"demo": "dem.demo", "n_spheres": n_spheres, "seed": seed, "t_max": t_max}
+    with H5Writer(h5, every=chunk, contacts=True, config=config) as writer:
         writer(sim)  # the initial state
         sim.observers.append(writer)
         while sim.time < t_max:
@@ -254,7 +256,7 @@ def main(argv=None):
     print(f"pouring {args.n} spheres (the first run compiles the kernels) ...")
     result = run_demo(args.output, n_spheres=args.n, seed=args.seed, t_max=args.t_max)
     png = os.path.join(args.output, "pour.png")
-    visualize(result).savefig(png, dpi=120)
+    save_figure(visualize(result), png, dpi=120, data="pour.h5")
     sim = result["sim"]
     state = "near rest" if result["at_rest"] else "not yet at rest"
     ke, released = result["kinetic"][-1], result["released"]

@@ -484,8 +484,11 @@ class RVE:
         return r["stress"]
 
     # ------------------------------------------------------------------ files
-    def save(self, path, **attrs):
-        """Write the RVE (state, law, settings) to an HDF5 file, atomically."""
+    def save(self, path, config=None, **attrs):
+        """Write the RVE (state, law, settings) to an HDF5 file, atomically: a
+        ``dem.checkpoint`` file (:func:`dem.io.save_checkpoint`) with an ``rve``
+        group; ``config`` (the settings that made the packing, a str or JSON-able)
+        becomes the file's ``config`` attribute, ``attrs`` the group's."""
         import json
 
         from .io.checkpoint import save_checkpoint
@@ -499,7 +502,7 @@ class RVE:
             for k, v in attrs.items():
                 g.attrs[k] = v
 
-        return save_checkpoint(self.sim, path, extra=extra)
+        return save_checkpoint(self.sim, path, extra=extra, config=config)
 
     @classmethod
     def load_file(cls, path, **overrides):

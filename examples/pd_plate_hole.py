@@ -99,7 +99,7 @@ def run(n=125, out="output/pd_plate_hole", figure=None):
     frames = []
     os.makedirs(out, exist_ok=True)
     writer = H5Writer(Path(out) / "plate.h5", every=10**9, contacts=False,
-                      fields={"damage": lambda s: s.damage()})
+                      fields={"damage": (lambda s: s.damage(), "1")})
     chunk = max(1, int(0.05 * T_RAMP / sim.dt))
 
     def snap(label):

@@ -27,14 +27,17 @@ solver
     :class:`Solver` (``advance(dt)``: one load increment, Newton with step cutting),
     :class:`SolverSettings`, :class:`SolverError`.
 output
-    :class:`Output`: ``fields.h5`` + ``fields.xdmf`` (ParaView, meshio) and plots.
+    :class:`Output`: ``fields.h5`` + ``fields.xdmf`` (ParaView, meshio) and plots;
+    :func:`read_fields` reads a run's ``fields.h5`` back as arrays with units
+    (:class:`Fields`).
 problem files
     :func:`load_problem`, :func:`validate_problem`, :func:`run_problem` (what
     ``hmm run`` does).
 
 Names load on first use, so ``import hmm`` costs almost nothing; the submodules
 (``hmm.macro``, ``hmm.micro``, ``hmm.farm``, ``hmm.coupling``, ``hmm.conditions``,
-``hmm.periodic``, ``hmm.problem``, ``hmm.run``, ``hmm.io``, ``hmm.checkpoint``,
+``hmm.periodic``, ``hmm.problem``, ``hmm.run``, ``hmm.io``, ``hmm.reader``,
+``hmm.checkpoint``,
 ``hmm.experiment``, ``hmm.batch``, ``hmm.cli``) hold the rest.
 """
 
@@ -53,7 +56,7 @@ _WHERE = {
     "Hypoelastic": "micro", "NeoHookean": "micro", "DEMMicroModel": "micro",
     "Adaptive": "micro",
     "SerialFarm": "farm", "MPIFarm": "farm", "make_farm": "farm",
-    "Output": "io",
+    "Output": "io", "read_fields": "reader", "Fields": "reader",
     "read_mesh": "problem", "clone_rve": "problem", "load_problem": "problem",
     "validate_problem": "problem",
     "run_problem": "run",

@@ -33,10 +33,11 @@ from pathlib import Path
 
 import numpy as np
 
+from dem.io.meta import stamp
 from dem.io.scene import Key, SceneError, Section, read_toml, validate
 from dem.limits import Limit, LimitError
 
-from .experiment import RVE_SCHEMA, SUMMARY_UNITS, UNITS, validate_config
+from .experiment import RVE_SCHEMA, SUMMARY_UNITS, UNITS, curve_attrs, validate_config
 
 log = logging.getLogger(__name__)
 
@@ -106,6 +107,7 @@ class Sweep:
     experiments: list
     parameters: list  # swept key paths, in order of first appearance
     out_dir: str
+    data: dict = None  # the parsed file: batch.h5's ``config`` attribute (as JSON)
 
 
 def load_sweep(path):
@@ -173,7 +175,7 @@ def expand(data, source="<sweep>", base_dir="."):
                              f"the same overrides {canon}")
         seen[canon] = exp_id
         experiments.append(Experiment(exp_id, index, overrides, cfg))
-    return Sweep(source, experiments, parameters, out_dir)
+    return Sweep(source, experiments, parameters, out_dir, data)
 
 
 def experiment_id(index, overrides):
@@ -295,7 +297,8 @@ class Store:
         for name in list(self.f):
             if "status" not in self.f[name].attrs:  # cut short while being written
                 del self.f[name]
-        self.f.attrs.update(format=FORMAT, version=VERSION, source=sweep.source,
+        stamp(self.f, FORMAT, VERSION, sweep.data)
+        self.f.attrs.update(source=sweep.source,
                             units=json.dumps({**SUMMARY_UNITS, **UNITS}),
                             conventions="compression positive for strains, p, q; "
                                         "stress dataset tension positive")
@@ -334,7 +337,7 @@ class Store:
     def done(self, e, curves, summary, rank):
         g = self._group(e, rank)
         for name, values in curves.items():
-            g.create_dataset(name, data=values).attrs["unit"] = UNITS.get(name, "-")
+            g.create_dataset(name, data=values).attrs.update(curve_attrs(name))
         g.attrs.update(summary)
         self._finish(g, "done")
 
@@ -454,4 +457,4 @@ def _write_figure(path, sweep, rows):
     ax.legend(fontsize="small")
     ax.set_title(f"{Path(sweep.source).name}: {len(done)} of {len(rows)} "
                  f"experiments done", fontsize="medium")
-    save_figure(fig, path, dpi=110)
+    save_figure(fig, path, dpi=110, data="batch.h5")

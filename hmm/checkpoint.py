@@ -3,12 +3,15 @@
 ``checkpoint.h5`` in the output directory, rewritten atomically (a temporary file,
 then a rename) every ``[output] checkpoint_every`` load steps::
 
-    /            attrs: format = "hmm.checkpoint", version, step, problem (a digest
-                 of the validated problem, output settings excluded)
+    /            attrs: format = "hmm.checkpoint", version, software, config (the
+                 problem as JSON), step, problem (a digest of the validated
+                 problem, output settings excluded)
     /solver/     u (n_dofs,), sigma (n_gp, d, d), tangent (n_gp, d, d, d, d),
                  iterations (k,), attrs: t, cuts, trials
     /curve/      the load-displacement curve so far (as in ``fields.h5``)
     /micro/NNNNNN/  each Gauss point's committed state (``MicroModel.export``)
+
+Every dataset carries ``unit`` (and ``sign`` where it matters): :func:`checkpoint_units`.
 
 ``hmm run problem.toml --restart`` reads it, checks that the problem is the same,
 and continues: the result is bit for bit that of an uninterrupted run, with any
@@ -22,7 +25,11 @@ import os
 import h5py
 import numpy as np
 
+from dem.io.checkpoint import state_units
 from dem.io.hdf5 import publish, read_bounded
+from dem.io.meta import COMPRESSION, ONE, TENSION, label, rules, stamp
+
+from .io import field_units
 
 FORMAT = "hmm.checkpoint"
 VERSION = 1
@@ -56,14 +63,23 @@ def problem_digest(problem):
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
+def checkpoint_units(dim):
+    """The unit rules (:func:`dem.io.meta.rules`) of ``checkpoint.h5``: the solver
+    state, the curve as in ``fields.h5`` and the micro states (those of a DEM state,
+    :func:`dem.io.checkpoint.state_units`)."""
+    return rules((r"solver/u", "m", None), (r"solver/sigma", "Pa", TENSION),
+                 (r"solver/tangent", "Pa", None), (r"solver/p", "Pa", COMPRESSION),
+                 (r"solver/iterations", ONE, None)) \
+        + field_units(dim) + state_units(dim)
+
+
 def save(path, problem, step, solver, curve, micro_states):
     """Write a checkpoint (rank 0) atomically."""
     path = os.fspath(path)
     tmp = path + ".tmp"
     try:
         with h5py.File(tmp, "w") as f:
-            f.attrs["format"] = FORMAT
-            f.attrs["version"] = VERSION
+            stamp(f, FORMAT, VERSION, problem)
             f.attrs["step"] = int(step)
             f.attrs["problem"] = problem_digest(problem)
             g = f.create_group("solver")
@@ -82,6 +98,7 @@ def save(path, problem, step, solver, curve, micro_states):
                 mg = f.create_group(f"micro/{pt:06d}")
                 for k, v in state.items():
                     mg.create_dataset(k, data=np.asarray(v))
+            label(f, checkpoint_units(solver.sigma.shape[-1]))
         publish(tmp, path)
     finally:
         if os.path.exists(tmp):

@@ -498,7 +498,8 @@ def run_experiment(cfg, out_dir=None, overwrite=False, progress=None):
     if generated:
         rve.restore(consolidated)
         p = cfg["packing"]
-        rve.save(paths[2], p0=p["p0"], seed=p["seed"],
+        rve.save(paths[2], config={"packing": p, "contact": cfg["contact"]},
+                 p0=p["p0"], seed=p["seed"],
                  consolidation_friction=p["consolidation_friction"])
     return result
 
@@ -773,9 +774,30 @@ def _summarize_cyclic(c, rve, confining, increment):
 
 
 # --------------------------------------------------------------------------- output
-#: unit of each curve that has one (the others are dimensionless)
+#: unit of each curve that has one (the others are dimensionless, unit "1")
 UNITS = {"stress": "Pa", "p": "Pa", "q": "Pa", "friction_angle": "deg",
-         "excess_pore_pressure": "Pa"}
+         "excess_pore_pressure": "Pa", "shear_stress": "Pa", "normal_stress": "Pa"}
+#: the sign convention of each curve whose sign matters (geomechanics: strains,
+#: ``p`` and the normal stress compression positive; the stress tensor tension
+#: positive)
+SIGNS = {"stress": "tension positive", "p": "compression positive",
+         "q": "non-negative", "excess_pore_pressure": "compression positive",
+         "shear_stress": "tension positive (the stress component)",
+         "normal_stress": "compression positive",
+         "axial_strain": "compression positive (shortening)",
+         "normal_strain": "compression positive (shortening)",
+         "volumetric_strain": "compression positive (contraction)"}
+#: the format tag and version of ``rve_test.h5``
+FORMAT, VERSION = "hmm.rve_test", 1
+
+
+def curve_attrs(name):
+    """The ``unit`` (and ``sign``) attributes of the curve ``name`` of an RVE test
+    (``rve_test.h5``, ``batch.h5``)."""
+    out = {"unit": UNITS.get(name, "1")}
+    if name in SIGNS:
+        out["sign"] = SIGNS[name]
+    return out
 #: unit of each summary value that has one
 SUMMARY_UNITS = {"confining": "Pa", "peak_friction_angle": "deg",
                   "dilatancy_angle": "deg", "critical_friction_angle": "deg",
@@ -794,12 +816,15 @@ def _write_h5(path, result):
 
     from dem.io.hdf5 import publish
 
+    from dem.io.meta import stamp
+
     tmp = path.with_name(path.name + ".tmp")
     with h5py.File(tmp, "w") as f:
         for name, values in result.curves.items():
-            f.create_dataset(name, data=values).attrs["unit"] = UNITS.get(name, "-")
+            f.create_dataset(name, data=values).attrs.update(curve_attrs(name))
         for name, value in result.summary.items():
             f.attrs[name] = value
+        stamp(f, FORMAT, VERSION, result.config)
         f.attrs["units"] = json.dumps(SUMMARY_UNITS)
         f.attrs["config"] = json.dumps(result.config)
         f.attrs["conventions"] = ("compression positive for strains, p, q; stress "
@@ -828,7 +853,7 @@ def _write_figure(path, result):
                 "cyclic": f"cyclic undrained {test}"}[s["kind"]]
         fig.suptitle(f"{what} test, {s['n_particles']} {s['particles']}, from "
                      f"{s['confining']:.4g} Pa, e0 = {s['initial_void_ratio']:.3f}")
-        save_figure(fig, path, dpi=120)
+        save_figure(fig, path, dpi=120, data="rve_test.h5")
         return
     ea = 100.0 * c["axial_strain"]
     fig = Figure(figsize=(9.0, 3.6), layout="constrained")
@@ -848,7 +873,7 @@ def _write_figure(path, result):
     test = "biaxial" if s["dim"] == 2 else "triaxial"
     fig.suptitle(f"drained {test} test, {s['n_particles']} {s['particles']}, confining "
                  f"{s['confining']:.4g} Pa, e0 = {s['initial_void_ratio']:.3f}")
-    save_figure(fig, path, dpi=120)
+    save_figure(fig, path, dpi=120, data="rve_test.h5")
 
 
 def _undrained_panels(axs, c, s):

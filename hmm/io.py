@@ -2,7 +2,8 @@
 
 ``fields.h5``::
 
-    /            attrs: kinematics ("small" or "finite")
+    /            attrs: format = "hmm.fields", version, software, config (the
+                 problem as JSON), kinematics ("small" or "finite")
     /mesh/points (n_vertices, 3) [m], /mesh/cells (n_elems, k) int64 (initial mesh)
     /gauss/points (n_gp, d) [m], /gauss/weights (n_gp,) [m^d] (initial)
     /steps/NNNNN/  attrs: step, load_factor, iterations
@@ -11,9 +12,10 @@
         element data, (n_elems,) each -- Gauss-point means:
             stress_xx ... [Pa] (Cauchy), strain_xx ... [-] (small: sym grad u;
             finite: logarithmic, ln V), strain_increment_xx ... [-] (the last
-            step's sym G), deviatoric_strain [-], mean_stress p [Pa] (compression
-            positive), stress_ratio q/p [-], void_ratio, coordination, dem_fraction
-            (share of points that ran DEM)
+            step's sym G), deviatoric_strain [-], pressure p = -tr(sigma)/d [Pa]
+            (compression positive, named for its sign; ``mean_stress`` in files
+            of version 1), stress_ratio q/p [-], void_ratio, coordination,
+            dem_fraction (share of points that ran DEM)
         gauss/stress (n_gp, d, d), gauss/strain (n_gp, d, d),
         gauss/increment (n_gp, d, d) (what the micro models got: G, not
         symmetrised, under finite kinematics), gauss/ran_dem (n_gp,),
@@ -24,11 +26,15 @@
 A saturated problem (:mod:`hmm.porous`) adds, per step (attrs: time [s]):
 ``pore_pressure`` (n_vertices,) [Pa] (compression positive) on the nodes; element
 means ``darcy_flux_x`` ... [m/s] and ``total_stress_xx`` ... [Pa] (the total stress
-``sigma' - alpha p I``; ``stress_*`` and ``mean_stress`` are then the effective
+``sigma' - alpha p I``; ``stress_*`` and ``pressure`` are then the effective
 ones); ``gauss/pore_pressure``, ``gauss/darcy_flux``, ``gauss/total_stress``; and
 the curve ``time`` [s], ``pore_pressure/max`` and ``pore_pressure/mean`` [Pa]
 (``pore_pressure.png`` shows them, the field where it is largest and the
 platens' settlements).
+
+Every dataset carries ``unit`` and, where it matters, ``sign`` (:func:`field_units`;
+stresses and strains tension positive, pressures compression positive).
+:func:`hmm.read_fields` reads the file back.
 
 ``fields.xdmf`` references it (a temporal collection, one grid per written step; under
 finite kinematics each grid is the deformed mesh, so ParaView shows the real shape);
@@ -47,11 +53,47 @@ import numpy as np
 from skfem import MeshHex, MeshQuad, MeshTet, MeshTri
 
 from dem.io.hdf5 import save_figure
+from dem.io import meta
+from dem.io.meta import COMPRESSION, EXTENSION, ONE, TENSION, check_format, rules, stamp
 
 log = logging.getLogger(__name__)
 
-#: the format tag and version of ``fields.h5`` (files of earlier runs carry none)
-FORMAT, VERSION = "hmm.fields", 1
+#: the format tag and version of ``fields.h5`` (files of earlier runs carry none;
+#: version 1 named the pressure ``mean_stress`` and had no units)
+FORMAT, VERSION = "hmm.fields", 2
+#: the versions a restart continues (an older file is brought up to date) and
+#: :func:`hmm.read_fields` reads
+VERSIONS = (1, 2)
+#: dataset names of version 1 -> their names now (the values are the same)
+RENAMED = {"mean_stress": "pressure"}
+
+
+def field_units(dim):
+    """The unit rules (:func:`dem.io.meta.rules`) of the datasets of ``fields.h5``,
+    by their path in the file, for a ``dim``-dimensional problem."""
+    step = r"steps/\d+/"
+    force = "N/m" if dim == 2 else "N"
+    return rules(
+        (r"mesh/points|gauss/points", "m", None),
+        (r"mesh/cells", ONE, None),
+        (r"gauss/weights", f"m^{dim}", None),
+        (step + r"(displacement|points|gauss/points)", "m", None),
+        (step + r"(total_)?stress_[xyz]{2}|" + step + r"gauss/(total_)?stress", "Pa",
+         TENSION),
+        (step + r"strain(_increment)?_[xyz]{2}|" + step + r"gauss/strain", ONE,
+         EXTENSION),
+        (step + r"gauss/increment", ONE, EXTENSION + " (the increment's gradient G)"),
+        (step + r"deviatoric_strain", ONE, "non-negative"),
+        (step + r"(gauss/)?(pressure|pore_pressure)", "Pa", COMPRESSION),
+        (step + r"stress_ratio", ONE, "q/p, non-negative where p > 0"),
+        (step + r"(void_ratio|coordination|dem_fraction|gauss/ran_dem)", ONE, None),
+        (step + r"(darcy_flux_[xyz]|gauss/darcy_flux)", "m/s", None),
+        (r"curve/(load_factor|iterations|dem_points)", ONE, None),
+        (r"curve/displacement/.+", "m", None),
+        (r"curve/force/.+", force, "force the support exerts on the body"),
+        (r"curve/time", "s", None),
+        (r"curve/pore_pressure/(max|mean)", "Pa", COMPRESSION),
+    )
 
 #: XDMF topology of each mesh kind (its corner vertices, whatever the element order)
 _TOPOLOGY = ((MeshQuad, "Quadrilateral"), (MeshTri, "Triangle"), (MeshHex, "Hexahedron"),
@@ -108,10 +150,12 @@ class Output:
     platens : sequence of str
         Boundaries that move as rigid platens: their displacement is recorded
         (``displacement/<name>``; no reaction, nothing holds them).
+    config : dict or str, optional
+        The problem that made the run: the file's ``config`` attribute (as JSON).
     """
 
     def __init__(self, directory, macro, boundaries, every=1, overwrite=False,
-                 driven=(), restart=None, porous=None, platens=()):
+                 driven=(), restart=None, porous=None, platens=(), config=None):
         self.dir = Path(directory)
         self.macro = macro
         self.porous = porous
@@ -126,6 +170,8 @@ class Output:
         self.curve = {k: [] for k in self.curve_names(self.boundaries,
                                                       porous is not None, self.platens)}
         self.f, self._kept, self._closed = None, None, False
+        self._config, self._units = config, field_units(macro.dim)
+        self._old_version = None
         if restart is not None:
             self._reopen(*restart)
             return
@@ -144,11 +190,11 @@ class Output:
         self.f.create_dataset("mesh/cells", data=cells)
         self.f.create_dataset("gauss/points", data=macro.gauss_points())
         self.f.create_dataset("gauss/weights", data=macro.weights())
-        self.f.attrs["format"] = FORMAT
-        self.f.attrs["version"] = VERSION
+        stamp(self.f, FORMAT, VERSION, config)
         self.f.attrs["kinematics"] = macro.kinematics
         if porous is not None:
             self.f.attrs["pressure_element"] = porous.p_element
+        meta.label(self.f, self._units)
 
     @staticmethod
     def curve_names(boundaries, saturated=False, platens=()):
@@ -169,11 +215,21 @@ class Output:
             raise FileNotFoundError(f"{self.path} is missing: cannot restart its run")
         try:
             with h5py.File(self.path, "r") as f:
+                try:
+                    version = check_format(f, self.path, FORMAT, VERSIONS)
+                except ValueError as err:  # another program's file: not ours to change
+                    raise FileExistsError(
+                        f"{err}; a restart continues only its own run's file: remove "
+                        f"it, or run without --restart and with --overwrite to "
+                        f"replace it") from None
                 frames = {name: float(f["steps"][name].attrs["load_factor"])
                           for name in f["steps"] if int(name) <= step}
         except (OSError, KeyError, TypeError, ValueError, AttributeError) as err:
+            if isinstance(err, FileExistsError):
+                raise
             raise ValueError(f"{self.path} is not the output of this run, cannot "
                              f"restart it ({' '.join(str(err).split())})") from None
+        self._old_version = version if version != VERSION else None
         self._kept = frames
         self.frames = [(f"steps/{name}", frames[name]) for name in sorted(frames)]
         for k in self.curve:
@@ -189,7 +245,21 @@ class Output:
                     del self.f["steps"][name]
             if "curve" in self.f:
                 del self.f["curve"]
+            if self._old_version is not None:
+                self._upgrade(self.f)
         return self.f
+
+    def _upgrade(self, f):
+        """Bring the file of an earlier version up to this one, in place: the
+        datasets renamed since (:data:`RENAMED`), the tags and units."""
+        for name in f["steps"]:
+            g = f["steps"][name]
+            for old, new in RENAMED.items():
+                if old in g and new not in g:
+                    g.move(old, new)
+        stamp(f, FORMAT, VERSION, self._config)
+        meta.label(f, self._units)
+        self._old_version = None
 
     def discard(self):
         """End a run that never started (a failed set-up): a new ``fields.h5`` is
@@ -286,7 +356,7 @@ class Output:
         g.create_dataset("deviatoric_strain",
                          data=emean(np.sqrt(2.0 / 3.0 * np.einsum("nij,nij->n", dev, dev))))
         p, ratio = _p_q(sig)
-        g.create_dataset("mean_stress", data=emean(p))
+        g.create_dataset("pressure", data=emean(p))
         g.create_dataset("stress_ratio", data=emean(ratio))
         for k in ("void_ratio", "coordination"):
             g.create_dataset(k, data=emean(np.asarray(measures[k], float)))
@@ -299,6 +369,7 @@ class Output:
             g.create_dataset("gauss/points", data=macro.gauss_points(u))
         if self.porous is not None:
             self._saturated(g, solver, emean)
+        meta.label(g, self._units, prefix=name + "/")
         self.f.flush()
         self.frames.append((name, solver.t))
 
@@ -326,6 +397,7 @@ class Output:
         f = self._file()
         for k, v in self.curve.items():
             f.create_dataset(f"curve/{k}", data=np.asarray(v, dtype=np.float64))
+        meta.label(f, self._units)
         keys = [k for k in f[self.frames[0][0]]
                 if isinstance(f[self.frames[0][0]][k], h5py.Dataset)] \
             if self.frames else []
@@ -395,7 +467,7 @@ class Output:
         c = {k: np.asarray(v) for k, v in self.curve.items()}
         d = self.macro.dim
         save_figure(load_displacement_figure(c, self.driven, d),
-                    self.dir / "load_displacement.png")
+                    self.dir / "load_displacement.png", data="fields.h5:/curve")
         if self.porous is not None:
             self._pressure_plot(plt, c)
         if d != 2 or not self.frames:
@@ -417,7 +489,8 @@ class Output:
              _second_panel(dem, void)],
             "last step, on the deformed mesh" if self.macro.finite else
             f"last step, displacements x {scale:.3g}")
-        save_figure(fig, self.dir / "deviatoric_strain.png")
+        save_figure(fig, self.dir / "deviatoric_strain.png",
+                    data=f"fields.h5:/{self.frames[-1][0]}")
 
     def _pressure_plot(self, plt, c):
         """``pore_pressure.png``: the pore pressure over time (maximum and mean over
@@ -474,5 +547,5 @@ class Output:
             ax.set_title(f"pore pressure at t = {when:.4g} s", fontsize=10)
             fig.colorbar(art, ax=ax, shrink=0.8, label="pore pressure [kPa]")
         fig.tight_layout()
-        save_figure(fig, self.dir / "pore_pressure.png")
+        save_figure(fig, self.dir / "pore_pressure.png", data="fields.h5")
         plt.close(fig)

@@ -82,7 +82,7 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
             out = Output(directory, macro, supports.boundaries, problem["output"]["every"],
                          overwrite=overwrite, driven=driven,
                          restart=(ck.step, ck.curve()) if ck is not None else None,
-                         porous=porous, platens=platens)
+                         porous=porous, platens=platens, config=problem)
     except (OSError, ValueError) as err:  # an existing output, a file in the path
         refused = err
     if comm is not None:

@@ -15,6 +15,7 @@ from pathlib import Path
 from unittest import mock
 
 import h5py
+import numpy as np
 import pytest
 from test_hostile_inputs import BASES, ELASTIC, ROOT, _stop, listing, run_cli, to_toml, \
     write_rve_packing
@@ -106,6 +107,16 @@ def _without_fields(tmp):
     (tmp / "out" / "fields.h5").unlink()
 
 
+def _foreign_fields(tmp):
+    """A stopped run whose fields.h5 was replaced by another program's file."""
+    _stopped(tmp)
+    path = tmp / "out" / "fields.h5"
+    path.unlink()
+    with h5py.File(path, "w") as f:
+        f.attrs["format"] = "hmm.batch"
+        f.create_dataset("steps/00000/x", data=np.zeros(3))
+
+
 RUN_CASES = {
     "valid": ([], None, 0),
     "invalid key": ([], lambda t: (t / "problem.toml").write_text(
@@ -123,6 +134,10 @@ RUN_CASES = {
     "restart stopping before the checkpoint": (["--restart", "--stop-after", "1"],
                                                _stopped, 2),
     "restart without fields.h5": (["--restart"], _without_fields, 2),
+    "restart into a foreign fields.h5": (["--restart", "--stop-after", "2"],
+                                         _foreign_fields, 2),
+    "a foreign fields.h5, --overwrite": (["--overwrite", "--stop-after", "2"],
+                                         _foreign_fields, 0),
 }
 
 

@@ -8,7 +8,8 @@ to frame; frame groups are numbered ``000000, 000001, ...`` in the order written
 A frame holds every *particle*: every body that is not a wall (spheres and level-set
 shapes alike), in body order::
 
-    /                       attrs: format = "dem.h5writer", version, dim, n_frames
+    /                       attrs: format = "dem.h5writer", version, software,
+                                   config (when given), dim, n_frames
     /frames/000000/         attrs: step, time [s], dt [s], dim, n_particles,
                                    n_spheres (particles of kind SPHERE), n_walls,
                                    n_contacts, n_surface_cells
@@ -61,6 +62,9 @@ shapes alike), in body order::
                      extent (plus two radii) in every direction of the plane;
                      normal (nw, 3)
 
+Every dataset carries ``unit`` (and ``sign`` where it matters; :data:`UNITS`, listed in
+``docs/conventions.md``); :func:`dem.io.read_frames` reads the frames back as arrays.
+
 Custom shapes (a user SDF) have no vertices: they appear as particles only (a glyph at
 ``pos`` of size ``radius`` in ParaView), never in ``surface/``.
 
@@ -72,6 +76,7 @@ usually holds the frames flushed before the crash.
 
 import logging
 import os
+import re
 import sys
 from pathlib import Path
 
@@ -81,12 +86,45 @@ import numpy as np
 from ..observers import Periodic
 from ..rotation import rotation_matrices
 from ..shapes import Shape
+from .meta import COMPRESSION, ONE, label, rules, stamp
 from .xdmf import FORMAT, write_xdmf, xdmf_files
 
 log = logging.getLogger(__name__)
 
-VERSION = 3  # 2: frames hold every particle (kind, surface/), not spheres only;
-#               3: padded 3-vectors and cells for XDMF 3 in each frame (xdmf/ groups)
+VERSION = 4  # 2: frames hold every particle (kind, surface/), not spheres only;
+#               3: padded 3-vectors and cells for XDMF 3 in each frame (xdmf/ groups);
+#               4: unit (and sign) on every dataset, software and config at the root
+
+#: unit and sign of every dataset of a frame, by its path in the frame group
+#: (:func:`dem.io.meta.label`); ``rot`` depends on the dimension (:func:`frame_units`)
+UNITS = (
+    (r"(walls/)?id|kind|(xdmf/)?vertex|surface/(cells|body)|walls/xdmf/cells"
+     r"|contacts/(i|j|is_wall)|contacts/xdmf/lines", ONE, None),
+    (r"(xdmf/)?pos|walls/pos|surface/points|(walls|contacts)/xdmf/points"
+     r"|contacts/x\d", "m", None),
+    (r"(xdmf/)?vel|surface/vel", "m/s", None),
+    (r"xdmf/quat", ONE, "(w, x, y, z), rotation body to world"),
+    (r"ang_vel", "rad/s", "counter-clockwise positive (right-handed about each axis)"),
+    (r"radius", "m", None),
+    (r"(xdmf/)?force", "N", "total force on the body"),
+    (r"walls/(xdmf/)?normal", ONE, "towards the particles' side"),
+    (r"contacts/(xdmf/)?normal", ONE, "from i to j"),
+    (r"contacts/overlap", "m", "positive in contact"),
+    (r"contacts/(xdmf/)?force", "N", "force on j"),
+    (r"contacts/normal_force", "N", COMPRESSION + " (pushes the two apart)"),
+    (r"contacts/(xdmf/)?tangential_force", "N", "force on j minus its normal part"),
+)
+
+
+def frame_units(dim, fields=None):
+    """The unit rules of a frame of dimension ``dim``, with the units of the extra
+    per-body ``fields`` (``{name: unit}``)."""
+    rot = (r"rot", "rad", "counter-clockwise positive") if dim == 2 else \
+        (r"rot", ONE, "(w, x, y, z), rotation body to world")
+    # paths are looked up with their numbers as 0 (dem.io.meta.label): so are names
+    extra = [(f"fields/{re.escape(re.sub(r'[0-9]+', '0', k))}", u, None)
+             for k, u in (fields or {}).items()]
+    return rules(*UNITS, rot, *extra)
 
 
 #: the most a stored dataset may inflate when read: deflate's limit is about 1032:1
@@ -123,13 +161,28 @@ def publish(tmp_path, path):
     os.replace(tmp_path, path)
 
 
-def save_figure(fig, path, dpi=120):
+#: the format tag and version of the project's PNG figures (in their text chunks)
+FIGURE_FORMAT, FIGURE_VERSION = "femxdem.figure", 1
+
+
+def save_figure(fig, path, dpi=120, data=None):
     """Write a matplotlib figure as PNG atomically (a ``.tmp`` file, then
-    :func:`publish`): a reader never sees half a picture."""
+    :func:`publish`): a reader never sees half a picture.
+
+    The PNG's text chunks carry ``format`` (:data:`FIGURE_FORMAT`), ``version``,
+    ``Software`` (the project and its version) and, when given, ``data``: the file
+    (and place in it) that holds the numbers drawn, e.g. ``"fields.h5:/curve"``.
+    """
+    from .meta import software
+
     path = Path(path)
     tmp = path.with_name(path.name + ".tmp")
+    meta = {"format": FIGURE_FORMAT, "version": str(FIGURE_VERSION),
+            "Software": software()}
+    if data is not None:
+        meta["data"] = str(data)
     with open(tmp, "wb") as fh:
-        fig.savefig(fh, format="png", dpi=dpi)
+        fig.savefig(fh, format="png", dpi=dpi, metadata=meta)
     publish(tmp, path)
     return path
 
@@ -316,9 +369,13 @@ class H5Writer:
     contacts : bool
         Also write the touching contacts of every frame.
     fields : dict, optional
-        Extra per-body scalars, ``{name: fn(sim) -> (n,) array}``, written with every
-        frame and shown by the particles' XDMF file as attributes (e.g. peridynamic
-        damage).
+        Extra per-body scalars, ``{name: fn(sim) -> (n,) array}`` or ``{name: (fn,
+        unit)}``, written with every frame (with their ``unit``; ``"unknown"`` when
+        not given) and shown by the particles' XDMF file as attributes (e.g.
+        peridynamic damage, ``(fn, "1")``).
+    config : str or dict, optional
+        The configuration that made the run (a scene file's text, or settings stored
+        as JSON): the file's ``config`` attribute.
 
     Examples
     --------
@@ -334,8 +391,10 @@ class H5Writer:
     2
     """
 
-    def __init__(self, path, every=100, contacts=True, fields=None):
-        self.fields = dict(fields or {})
+    def __init__(self, path, every=100, contacts=True, fields=None, config=None):
+        fields = dict(fields or {})
+        self.fields = {k: v[0] if isinstance(v, tuple) else v for k, v in fields.items()}
+        self._field_units = {k: v[1] for k, v in fields.items() if isinstance(v, tuple)}
         self.path = os.fspath(path)
         self.tmp_path = self.path + ".tmp"
         self.xdmf_path = os.fspath(Path(self.path).with_suffix(".xdmf"))
@@ -348,8 +407,7 @@ class H5Writer:
         parent = os.path.dirname(os.path.abspath(self.path))
         os.makedirs(parent, exist_ok=True)
         self._file = h5py.File(self.tmp_path, "w")
-        self._file.attrs["format"] = FORMAT
-        self._file.attrs["version"] = VERSION
+        stamp(self._file, FORMAT, VERSION, config)
         self._frames = self._file.create_group("frames")
 
     # ------------------------------------------------------------------ observer
@@ -401,6 +459,7 @@ class H5Writer:
         if self.contacts:
             n_c = self._write_contacts(g.create_group("contacts"), sim.contacts(), b)
         g.attrs["n_contacts"] = n_c
+        label(g, frame_units(self._dim, self._field_units))
         self.n_frames += 1
         self._file.flush()
 

@@ -132,6 +132,26 @@ def test_outputs_hold_the_curves_and_the_packing(biaxial):
     assert packing.bodies.n == 50
 
 
+def test_the_packing_file_says_what_made_it(biaxial):
+    """packing.h5: a dem.checkpoint file with the project's version, the [packing] and
+    [contact] that made it, and a unit on every dataset."""
+    import json
+
+    from dem.io.meta import software
+
+    _, out = biaxial
+    units = {}
+    with h5py.File(out / "packing.h5") as f:
+        assert (f.attrs["format"], f.attrs["version"]) == ("dem.checkpoint", 1)
+        assert f.attrs["software"] == software()
+        config = json.loads(f.attrs["config"])
+        f.visititems(lambda name, obj: units.__setitem__(name, obj.attrs.get("unit"))
+                     if isinstance(obj, h5py.Dataset) else None)
+    assert config["packing"]["count"] == 50 and config["contact"]["kn"] > 0
+    assert units["bodies/pos"] == "m" and units["rve/deformation"] == "1"
+    assert not [k for k, u in units.items() if u in (None, "unknown")]
+
+
 def test_same_seed_same_curves(biaxial, tmp_path):
     again = run_experiment(_config(SMALL, tmp_path), progress=False)
     for name, values in biaxial[0].curves.items():

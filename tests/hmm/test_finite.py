@@ -545,7 +545,7 @@ def test_a_run_whose_element_inverts_stops_naming_it_and_the_step(tmp_path):
     assert "load step 3 of 3" in lines[0] and "element 0 inverts" in lines[0]
     with h5py.File(tmp_path / "out" / "fields.h5") as f:
         assert f.attrs["kinematics"] == "finite"
-        assert (f.attrs["format"], f.attrs["version"]) == ("hmm.fields", 1)
+        assert (f.attrs["format"], f.attrs["version"]) == ("hmm.fields", 2)
         step = int(f.attrs["last_converged_step"])
         t = float(f.attrs["last_converged_load_factor"])
         assert step >= 2 and 2.0 / 3.0 <= t < 1.0 / 1.2

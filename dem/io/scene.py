@@ -139,8 +139,9 @@ class Key:
 
     ``type`` is one of ``int``, ``float``, ``bool``, ``str``, ``vector`` (``dim``
     numbers), ``radius`` (a number or ``[min, max]``), ``tensor`` (a number or ``dim``
-    rows of ``dim`` numbers; ``range`` applies to a number only) and ``path`` (a file
-    name relative to the scene). ``default`` is a value, ``None`` (optional: computed
+    rows of ``dim`` numbers; ``range`` applies to a number only), ``axes`` (distinct
+    axis names among the first ``dim`` of x, y, z) and ``path`` (a file name relative
+    to the scene). ``default`` is a value, ``None`` (optional: computed
     when absent) or :data:`REQUIRED`. ``only`` lists the variants (generators, laws)
     the key belongs to (empty: all); ``required_for`` the variants for which it is
     required.
@@ -221,6 +222,13 @@ SCHEMA = {
         "velocity": Key("vector", "m/s", default=0.0, doc="Initial velocity."),
         "file": Key("path", default=REQUIRED, only=("file",),
                     doc="Whitespace-separated rows x y [z] r, '#' comments."),
+    }),
+    "domain": Section(doc="A periodic box: the axes along which the scene repeats and "
+                          "its bounds on them (other axes stay open).", keys={
+        "periodic": Key("axes", doc="The periodic axes, e.g. [\"x\", \"y\"]; required "
+                                    "in a [domain]."),
+        "lo": Key("vector", "m", doc="Lower corner of the box; required in a [domain]."),
+        "hi": Key("vector", "m", doc="Upper corner of the box; required in a [domain]."),
     }),
     "walls": Section(doc="Planes; particles live on the side the normal points to.",
                      array=True, keys={
@@ -470,6 +478,14 @@ def _check_value(ctx, where, key, spec, value):
         free = Key("float")
         return [[_number(ctx, where, f"{key}[{i}][{j}]", free, v)
                  for j, v in enumerate(row)] for i, row in enumerate(value)]
+    if t == "axes":
+        names = "xyz"[:ctx.dim]
+        if (not isinstance(value, list) or not value
+                or any(not isinstance(a, str) or a not in names for a in value)
+                or len(set(value)) != len(value)):
+            ctx.fail(f"{key} must be a list of distinct axes among "
+                     f"{_show(list(names))}, got {_show(value)}", where)
+        return list(value)
     if t == "radius":
         if isinstance(value, list):
             if len(value) != 2:
@@ -539,6 +555,47 @@ def _cross_checks(ctx, scene):
     for i, w in enumerate(scene["walls"]):
         if not any(w["normal"]):
             ctx.fail("normal must be a non-zero vector", f"[[walls]] #{i + 1}")
+    _check_domain(ctx, scene)
+
+
+def _check_domain(ctx, scene):
+    """A [domain] names its periodic axes and bounds them; the generation box lies
+    inside it along them, and no wall cuts across one."""
+    dom = scene["domain"]
+    if all(v is None for v in dom.values()):
+        return
+    for key in ("periodic", "lo", "hi"):
+        if dom[key] is None:
+            ctx.fail(f"missing required key '{key}' of a periodic box", "[domain]")
+    axes = ["xyz".index(a) for a in dom["periodic"]]
+    for a in axes:
+        if not dom["lo"][a] < dom["hi"][a]:
+            ctx.fail(f"needs lo < hi along the periodic axis {'xyz'[a]}, got "
+                     f"{_fmt(dom['lo'][a])} and {_fmt(dom['hi'][a])}", "[domain]")
+    p = scene["particles"]
+    if p["generator"] in ("lattice", "random"):
+        for a in axes:
+            if p["lo"][a] < dom["lo"][a] or p["hi"][a] > dom["hi"][a]:
+                ctx.fail(f"the generation box lo..hi must lie inside the [domain] along "
+                         f"its periodic axis {'xyz'[a]}: {_fmt(p['lo'][a])}.."
+                         f"{_fmt(p['hi'][a])} is not inside {_fmt(dom['lo'][a])}.."
+                         f"{_fmt(dom['hi'][a])}", "[particles]")
+    for i, w in enumerate(scene["walls"]):
+        if any(w["normal"][a] != 0.0 for a in axes):
+            ctx.fail(f"a wall's normal must have no component along a periodic axis "
+                     f"({', '.join(dom['periodic'])}), got {_show(w['normal'])}",
+                     f"[[walls]] #{i + 1}")
+
+
+def scene_domain(scene):
+    """The :class:`dem.Domain` of a validated scene's ``[domain]``, or None."""
+    dom = scene["domain"]
+    if dom["periodic"] is None:
+        return None
+    from ..neighbors import Box
+
+    periodic = [a in dom["periodic"] for a in "xyz"[:len(dom["lo"])]]
+    return Box(dom["lo"], dom["hi"], periodic)
 
 
 # --------------------------------------------------------------------------- building
@@ -573,6 +630,15 @@ def build_bodies(scene):
                 pos = random_packing(lo, hi, radius, rng)
     except ValueError as exc:
         ctx.fail(str(exc), "[particles]")
+    domain = scene_domain(scene)
+    if domain is not None:
+        ax = domain.periodic
+        out = np.flatnonzero(np.any((pos[:, ax] < domain.lo[ax])
+                                    | (pos[:, ax] >= domain.hi[ax]), axis=1))
+        if out.size:
+            k = int(out[0])
+            ctx.fail(f"particle {k} at {_show(pos[k].tolist())} lies outside the [domain] "
+                     f"along a periodic axis", "[particles]")
     bodies = Bodies.spheres(pos, radius=radius, density=p["density"], vel=p["velocity"])
     for i, w in enumerate(scene["walls"]):
         point, normal = np.array(w["point"]), np.array(w["normal"])
@@ -627,7 +693,7 @@ def build_simulation(scene):
                          damping=s["damping"], skin=s["skin"],
                          neighbor_backend=s["neighbor_backend"],
                          overlap_limit=s["overlap_limit"],
-                         allow_unstable_dt=s["allow_unstable_dt"])
+                         allow_unstable_dt=s["allow_unstable_dt"], box=scene_domain(scene))
     except ValueError as exc:
         ctx.fail(str(exc), "[simulation]")
     o = scene["output"]
@@ -660,7 +726,7 @@ def _describe(spec):
     kind = {"vector": "array of dim numbers", "radius": "number or [min, max]",
             "tensor": "number or dim x dim array",
             "path": "file name", "str": "string", "int": "integer", "float": "number",
-            "bool": "boolean"}[spec.type]
+            "bool": "boolean", "axes": "list of axis names"}[spec.type]
     return kind + (f", {spec.unit}" if spec.unit != "-" else "")
 
 

@@ -386,3 +386,67 @@ def test_schema_is_documented():
             assert f"`{key}`" in doc
             assert spec.doc, f"{name}.{key} has no description"
     assert issubclass(SceneError, ValueError)
+
+
+# --------------------------------------------------------------------------- periodic boxes
+def _periodic_scene():
+    """Disks falling onto a floor in a box periodic along x (2D)."""
+    return {
+        "simulation": {"dim": 2, "steps": 3000, "gravity": [0.0, -9.81],
+                       "damping": 0.1},
+        "domain": {"periodic": ["x"], "lo": [0.0, 0.0], "hi": [0.05, 0.2]},
+        "particles": {"generator": "random", "count": 40, "lo": [0.0, 0.0],
+                      "hi": [0.05, 0.1], "radius": [0.002, 0.003], "density": 2500.0,
+                      "seed": 3, "velocity": [0.0, 0.0]},
+        "walls": [{"point": [0.0, 0.0], "normal": [0.0, 1.0]}],
+        "contact": {"law": "linear", "kn": 1.0e4, "kt": 5.0e3, "mu": 0.5,
+                    "restitution": 0.5},
+        "output": {"every": 1000},
+    }
+
+
+def test_a_periodic_box_wraps_and_conserves_momentum_along_it(tmp_path):
+    """A gas of disks with random velocities, periodic along x and open along y:
+    bodies wrap into the box, pairs meet across its boundary, and the contact forces,
+    equal and opposite, keep the total momentum to round-off."""
+    from dem.io.scene import build_simulation, load_scene
+
+    scene = _periodic_scene()
+    scene["simulation"].update(gravity=[0.0, 0.0], damping=0.0)
+    scene["walls"] = []
+    sim, _ = build_simulation(load_scene(write_scene(tmp_path, scene)))
+    assert sim.box is not None and sim.box.periodic.tolist() == [True, False]
+    rng = np.random.default_rng(0)
+    sim.bodies.vel[:] = rng.normal(0.0, 0.05, sim.bodies.vel.shape)
+    m = sim.bodies.mass[:, None]
+    p0 = (m * sim.bodies.vel).sum(axis=0)
+    crossed = 0
+    for _ in range(10):
+        sim.run(300, progress=False)
+        crossed += int(np.any(sim.neighbors.img[:, 0] != 0))
+    x = sim.bodies.pos[:, 0]
+    assert np.all((x >= 0.0) & (x < 0.05))
+    assert crossed > 0  # pairs across the periodic boundary
+    p1 = (m * sim.bodies.vel).sum(axis=0)
+    scale = float((m * np.abs(sim.bodies.vel)).sum())
+    assert np.all(np.abs(p1 - p0) < 1e-12 * scale)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda s: s["domain"].pop("lo"), "[domain] missing required key 'lo' of a periodic box"),
+    (lambda s: s["domain"].update(periodic=["x", "x"]),
+     "[domain] periodic must be a list of distinct axes among"),
+    (lambda s: s["domain"].update(periodic=["z"]),
+     '[domain] periodic must be a list of distinct axes among ["x", "y"], got ["z"]'),
+    (lambda s: s["particles"].update(hi=[0.06, 0.1]),
+     "[particles] the generation box lo..hi must lie inside the [domain] along its "
+     "periodic axis x"),
+    (lambda s: s["walls"].append({"point": [0.0, 0.0], "normal": [1.0, 0.0]}),
+     "[[walls]] #2 a wall's normal must have no component along a periodic axis (x)"),
+])
+def test_a_bad_periodic_box_is_one_line(tmp_path, capsys, edit, message):
+    scene = _periodic_scene()
+    edit(scene)
+    code, _, err = run_cli(["run", write_scene(tmp_path, scene), "--dry-run"], capsys)
+    assert code == 2
+    assert_one_line_error(err, message)

@@ -139,7 +139,8 @@ def _cmd_run(args):
     out_file = output.file if args.output is None else args.output / output.file.name
     n_steps = scene["simulation"]["steps"]
     if args.dry_run:
-        return _dry_run(args, sim, out_file, n_steps)
+        inserted = scene["insert"]["count"] if scene["insert"] else 0
+        return _dry_run(args, sim, out_file, n_steps, inserted)
     try:
         writer = _open_writer(out_file, output, args.overwrite,
                               config=args.scene.read_text(errors="replace"))
@@ -189,7 +190,7 @@ def _run(sim, n_steps, rest_speed, progress, writer):
             else f", not at rest (still above {rest_speed:g} m/s)")
 
 
-def _dry_run(args, sim, out_file, n_steps):
+def _dry_run(args, sim, out_file, n_steps, inserted=0):
     """Check the outputs as the run would (nothing is written) and print the plan."""
     from .cost import run_seconds, time_line
     from .io.plan import check_new_files, work_line
@@ -200,7 +201,7 @@ def _dry_run(args, sim, out_file, n_steps):
         check_new_files([out_file, out_file.with_suffix(".xdmf")], args.overwrite)
     except OSError as exc:
         return _error(exc, EXIT_USAGE)
-    n_particles = sim.bodies.n - len(sim.bodies.ids(Shape.PLANE))
+    n_particles = sim.bodies.n - len(sim.bodies.ids(Shape.PLANE)) + inserted
     replaced = " (replaced)" if args.overwrite and out_file.exists() else ""
     print(f"{args.scene}: valid; {_bodies_line(sim)}; {n_steps} steps of "
           f"dt = {sim.dt:.4g} s; output {out_file}{replaced}; memory "

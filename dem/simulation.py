@@ -273,8 +273,8 @@ class Simulation(ShapeScene):
         """Build the neighbour lists and the forces of the current state (idempotent)."""
         if not self._primed:
             self._refresh_tables()
-            if self.neighbors.pairs is None:
-                self._rebuild()
+            if self.neighbors.pairs is None or self._radius_ref.shape[0] != self.bodies.n:
+                self._rebuild()  # first build, or bodies added (dem.insertion)
             elif not self.shaped:
                 self._index()
             if self.shaped:

@@ -230,6 +230,24 @@ SCHEMA = {
         "lo": Key("vector", "m", doc="Lower corner of the box; required in a [domain]."),
         "hi": Key("vector", "m", doc="Upper corner of the box; required in a [domain]."),
     }),
+    "insert": Section(doc="Particles inserted over time in a region (spheres, disks "
+                          "in 2D), after the [particles] of the start.", keys={
+        "count": Key("int", range=NONNEGATIVE,
+                     doc="Particles to insert in all; required in an [insert]."),
+        "rate": Key("float", "1/s", range=POSITIVE,
+                    doc="Particles per second; required in an [insert]."),
+        "lo": Key("vector", "m", doc="Lower corner of the region; required."),
+        "hi": Key("vector", "m", doc="Upper corner of the region; required."),
+        "radius": Key("radius", "m", range=POSITIVE,
+                      doc="Radius, or [min, max]; required."),
+        "density": Key("float", "kg/m^3", range=POSITIVE,
+                       doc="Density; default that of [particles]."),
+        "velocity": Key("vector", "m/s", default=0.0, doc="Initial velocity."),
+        "every": Key("int", default=100, range=Range(1.0),
+                     doc="Steps between insertions."),
+        "seed": Key("int", default=0, range=NONNEGATIVE,
+                    doc="Seed of the random positions and radii."),
+    }),
     "walls": Section(doc="Planes; particles live on the side the normal points to.",
                      array=True, keys={
         "point": Key("vector", "m", default=REQUIRED, doc="A point of the plane."),
@@ -556,6 +574,31 @@ def _cross_checks(ctx, scene):
         if not any(w["normal"]):
             ctx.fail("normal must be a non-zero vector", f"[[walls]] #{i + 1}")
     _check_domain(ctx, scene)
+    _check_insert(ctx, scene)
+
+
+def _check_insert(ctx, scene):
+    """An [insert] names its count, rate, region and radius; the region holds a
+    particle, and its count is within the particle limit."""
+    ins = scene["insert"]
+    if ins["count"] is None and ins["rate"] is None and ins["lo"] is None:
+        scene["insert"] = None
+        return
+    for key in ("count", "rate", "lo", "hi", "radius"):
+        if ins[key] is None:
+            ctx.fail(f"missing required key '{key}' of an insertion", "[insert]")
+    r_max = max(ins["radius"]) if isinstance(ins["radius"], list) else ins["radius"]
+    for a, (lo, hi) in enumerate(zip(ins["lo"], ins["hi"], strict=True)):
+        if not hi - lo > 2.0 * r_max:
+            ctx.fail(f"the region must be wider than a particle's diameter "
+                     f"{_fmt(2.0 * r_max)} m along every axis, got lo[{a}] = {_fmt(lo)}, "
+                     f"hi[{a}] = {_fmt(hi)}", "[insert]")
+    try:
+        PARTICLES.check(ins["count"], "[insert] count")
+        check_particle_scales(ins["radius"], ins["density"] or scene["particles"]["density"],
+                              ctx.dim)
+    except LimitError as exc:
+        ctx.fail(str(exc), "[insert]")
 
 
 def _check_domain(ctx, scene):
@@ -696,6 +739,18 @@ def build_simulation(scene):
                          allow_unstable_dt=s["allow_unstable_dt"], box=scene_domain(scene))
     except ValueError as exc:
         ctx.fail(str(exc), "[simulation]")
+    if scene["insert"] is not None:
+        from ..insertion import Inserter
+
+        ins = scene["insert"]
+        try:
+            inserter = Inserter(ins["lo"], ins["hi"], ins["count"], ins["rate"],
+                                ins["radius"], ins["density"] or scene["particles"]["density"],
+                                velocity=ins["velocity"], every=ins["every"], seed=ins["seed"])
+            inserter.check_mass(sim)
+        except ValueError as exc:
+            ctx.fail(str(exc), "[insert]")
+        sim.controllers.append(inserter)
     o = scene["output"]
     stem = Path(ctx.source).stem.strip("<>") or "scene"
     out_dir = Path(o["dir"] if o["dir"] is not None else Path("output") / stem)

@@ -450,3 +450,66 @@ def test_a_bad_periodic_box_is_one_line(tmp_path, capsys, edit, message):
     code, _, err = run_cli(["run", write_scene(tmp_path, scene), "--dry-run"], capsys)
     assert code == 2
     assert_one_line_error(err, message)
+
+
+# --------------------------------------------------------------------------- insertion
+def _insert_scene():
+    """Disks poured into a 2D box from a region above it, 2000 a second."""
+    return {
+        "simulation": {"dim": 2, "steps": 4000, "gravity": [0.0, -9.81]},
+        "particles": {"generator": "lattice", "count": 4, "lo": [0.0, 0.0],
+                      "hi": [0.05, 0.02], "radius": 0.003, "density": 2500.0},
+        "insert": {"count": 30, "rate": 2000.0, "lo": [0.0, 0.03], "hi": [0.05, 0.08],
+                   "radius": [0.003, 0.004], "velocity": [0.0, -0.2], "every": 50},
+        "walls": [{"point": [0.0, 0.0], "normal": [0.0, 1.0]},
+                  {"point": [0.0, 0.0], "normal": [1.0, 0.0]},
+                  {"point": [0.05, 0.0], "normal": [-1.0, 0.0]}],
+        "contact": {"law": "linear", "kn": 1.0e6, "kt": 5.0e5, "mu": 0.5,
+                    "restitution": 0.5},
+        "output": {"every": 500},
+    }
+
+
+def test_particles_are_inserted_over_time(tmp_path, capsys):
+    from dem.io import read_frames
+    from dem.io.scene import build_simulation, load_scene
+
+    scene = load_scene(write_scene(tmp_path, _insert_scene()))
+    sim, _ = build_simulation(scene)
+    inserter = sim.controllers[0]
+    sim.run(300, progress=False)
+    t = sim.time
+    # due by the last insertion (every 50 steps), as room allows
+    assert 0 < inserter.inserted <= min(30, int(2000.0 * t))
+    sim.run(3700, progress=False)
+    assert inserter.inserted == 30 and sim.bodies.n == 4 + 3 + 30
+    new = inserter.ids
+    r = sim.bodies.radius[new]
+    assert np.all((r >= 0.003) & (r <= 0.004))
+    # no two particles overlap by more than a sliver, none fell through the floor
+    d = np.linalg.norm(sim.bodies.pos[new][:, None] - sim.bodies.pos[new][None], axis=2)
+    gap = d - r[:, None] - r[None] + np.eye(len(new))
+    assert gap.min() > -0.3 * r.min()
+    assert np.all(sim.bodies.pos[new, 1] > 0.0)
+    # through dem run: the frames grow as particles arrive
+    code, out, err = run_cli(["run", write_scene(tmp_path, _insert_scene()), "-o",
+                              tmp_path / "out"], capsys)
+    assert code == 0, err
+    frames = read_frames(tmp_path / "out" / "scene.h5")
+    counts = [len(f["id"]) for f in frames.frames]
+    assert counts[0] == 4 and counts[-1] == 34 and counts == sorted(counts)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda s: s["insert"].pop("rate"), "[insert] missing required key 'rate'"),
+    (lambda s: s["insert"].update(hi=[0.005, 0.1]),
+     "[insert] the region must be wider than a particle's diameter"),
+    (lambda s: s["insert"].update(radius=0.001),
+     "[insert] inserted particles of radius 0.001 m and density 2500 kg/m^3"),
+])
+def test_a_bad_insertion_is_one_line(tmp_path, capsys, edit, message):
+    scene = _insert_scene()
+    edit(scene)
+    code, _, err = run_cli(["run", write_scene(tmp_path, scene), "--dry-run"], capsys)
+    assert code == 2
+    assert_one_line_error(err, message)

@@ -121,6 +121,7 @@ def _error(msg, code):
 
 
 def _cmd_run(args):
+    from .io.files import OutputError
     from .io.scene import SceneError, build_simulation, load_scene
     from .simulation import SimulationError
 
@@ -154,13 +155,17 @@ def _cmd_run(args):
             writer(sim)  # the initial frame; the run adds one every `every` steps
         t0 = time.perf_counter()
         sim.run(n_steps, progress=progress)
+        if writer is not None:
+            writer.close()
+    except OutputError as exc:  # the disk refused a write: the file is removed
+        return _error(exc, EXIT_USAGE)
     except SimulationError as exc:
         return _error(f"simulation failed: {exc}", EXIT_FAILED)
     except KeyboardInterrupt:
         return _error(f"interrupted at step {sim.step}", 130)
     finally:
         if writer is not None:
-            writer.close()
+            _close_quietly(writer)
     wall = time.perf_counter() - t0
     rate = f" ({n_steps / wall:.3g} steps/s)" if wall > 0 and n_steps else ""
     print(f"dem run {args.scene}: {_bodies_line(sim)}\n"
@@ -170,6 +175,17 @@ def _cmd_run(args):
     if writer is not None and writer.xdmf_paths:  # what ParaView and meshio open
         print("  xdmf       " + ", ".join(Path(p).name for p in writer.xdmf_paths))
     return EXIT_OK
+
+
+def _close_quietly(writer):
+    """Close ``writer`` after another error, which is the one reported: its own
+    OutputError would be a second line."""
+    from .io.files import OutputError
+
+    try:
+        writer.close()
+    except OutputError as exc:
+        log.debug("%s", exc)
 
 
 def _dry_run(args, sim, out_file, n_steps):
@@ -214,7 +230,12 @@ def _open_writer(path, output, overwrite):
         return None
     xdmf = [Path(p) for p in xdmf_files(path.with_suffix(".xdmf")).values()]
     existing = refuse_existing((path, *xdmf), overwrite)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    for p in existing:
-        p.unlink()
+    from .io.files import OutputError
+
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        for p in existing:
+            p.unlink()
+    except OSError as err:
+        raise OutputError(path, err) from None
     return H5Writer(path, every=output.every, contacts=output.contacts)

@@ -22,7 +22,8 @@ import os
 import h5py
 import numpy as np
 
-from dem.io.hdf5 import publish, read_bounded
+from dem.io.files import write_h5_atomic
+from dem.io.hdf5 import read_bounded
 
 FORMAT = "hmm.checkpoint"
 VERSION = 1
@@ -37,35 +38,30 @@ def problem_digest(problem):
 
 def save(path, problem, step, solver, curve, micro_states):
     """Write a checkpoint (rank 0) atomically."""
-    path = os.fspath(path)
-    tmp = path + ".tmp"
-    try:
-        with h5py.File(tmp, "w") as f:
-            f.attrs["format"] = FORMAT
-            f.attrs["version"] = VERSION
-            f.attrs["step"] = int(step)
-            f.attrs["problem"] = problem_digest(problem)
-            g = f.create_group("solver")
-            g.attrs["t"] = float(solver.t)
-            g.attrs["cuts"] = int(solver.cuts)
-            g.attrs["trials"] = int(solver.farm.n_trials)
-            g.create_dataset("u", data=solver.u)
-            g.create_dataset("sigma", data=solver.sigma)
-            g.create_dataset("tangent", data=solver.tangent)
-            if getattr(solver, "p", None) is not None:  # a saturated problem
-                g.create_dataset("p", data=solver.p)
-            g.create_dataset("iterations", data=np.asarray(solver.iterations, np.int64))
-            for k, v in curve.items():
-                f.create_dataset(f"curve/{k}", data=np.asarray(v, dtype=np.float64))
-            for pt, state in micro_states.items():
-                mg = f.create_group(f"micro/{pt:06d}")
-                for k, v in state.items():
-                    mg.create_dataset(k, data=np.asarray(v))
-        publish(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-    return path
+
+    def fill(f):
+        f.attrs["format"] = FORMAT
+        f.attrs["version"] = VERSION
+        f.attrs["step"] = int(step)
+        f.attrs["problem"] = problem_digest(problem)
+        g = f.create_group("solver")
+        g.attrs["t"] = float(solver.t)
+        g.attrs["cuts"] = int(solver.cuts)
+        g.attrs["trials"] = int(solver.farm.n_trials)
+        g.create_dataset("u", data=solver.u)
+        g.create_dataset("sigma", data=solver.sigma)
+        g.create_dataset("tangent", data=solver.tangent)
+        if getattr(solver, "p", None) is not None:  # a saturated problem
+            g.create_dataset("p", data=solver.p)
+        g.create_dataset("iterations", data=np.asarray(solver.iterations, np.int64))
+        for k, v in curve.items():
+            f.create_dataset(f"curve/{k}", data=np.asarray(v, dtype=np.float64))
+        for pt, state in micro_states.items():
+            mg = f.create_group(f"micro/{pt:06d}")
+            for k, v in state.items():
+                mg.create_dataset(k, data=np.asarray(v))
+
+    return write_h5_atomic(path, fill)
 
 
 class Checkpoint:

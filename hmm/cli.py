@@ -223,6 +223,7 @@ def _directory(problem, args):
 
 
 def _solve(problem, args, prog):
+    from dem.io.files import OutputError
     from dem.io.scene import SceneError
     from dem.simulation import SimulationError
 
@@ -239,6 +240,10 @@ def _solve(problem, args, prog):
                               progress=False if args.no_progress else None, echo=print,
                               restart=getattr(args, "restart", False),
                               stop_after=getattr(args, "stop_after", None))
+    except OutputError as err:  # the disk refused a file; say where a restart starts
+        note = _checkpoint_note(directory)
+        return _error(prog, err if note.startswith("no ") else f"{err}; {note}",
+                      EXIT_USAGE)
     except (SceneError, OSError, ValueError) as err:
         return _error(prog, err, EXIT_USAGE)
     except (SolverError, SimulationError) as err:

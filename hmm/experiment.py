@@ -790,12 +790,9 @@ SUMMARY_UNITS = {"confining": "Pa", "peak_friction_angle": "deg",
 
 
 def _write_h5(path, result):
-    import h5py
+    from dem.io.files import write_h5_atomic
 
-    from dem.io.hdf5 import publish
-
-    tmp = path.with_name(path.name + ".tmp")
-    with h5py.File(tmp, "w") as f:
+    def fill(f):
         for name, values in result.curves.items():
             f.create_dataset(name, data=values).attrs["unit"] = UNITS.get(name, "-")
         for name, value in result.summary.items():
@@ -804,7 +801,8 @@ def _write_h5(path, result):
         f.attrs["config"] = json.dumps(result.config)
         f.attrs["conventions"] = ("compression positive for strains, p, q; stress "
                                   "dataset tension positive; engineering strains")
-    publish(tmp, path)
+
+    write_h5_atomic(path, fill)
 
 
 def _write_figure(path, result):

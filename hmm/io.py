@@ -38,7 +38,6 @@ finite kinematics each grid is the deformed mesh, so ParaView shows the real sha
 
 import contextlib
 import logging
-import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -46,6 +45,7 @@ import h5py
 import numpy as np
 from skfem import MeshHex, MeshQuad, MeshTet, MeshTri
 
+from dem.io.files import H5Output, OutputError, remove_quietly, write_bytes_atomic
 from dem.io.hdf5 import save_figure
 
 log = logging.getLogger(__name__)
@@ -125,15 +125,24 @@ class Output:
         self.frames = []  # (group name, load factor)
         self.curve = {k: [] for k in self.curve_names(self.boundaries,
                                                       porous is not None, self.platens)}
-        self.f, self._kept, self._closed = None, None, False
+        self.f, self._kept, self._closed, self._out = None, None, False, None
         if restart is not None:
             self._reopen(*restart)
             return
         if self.path.exists() and not overwrite:
             raise FileExistsError(f"{self.path} exists (pass --overwrite to replace it)")
-        self.dir.mkdir(parents=True, exist_ok=True)
+        try:
+            self.dir.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise OutputError(self.dir, err) from None
         self._made_dir = not any(self.dir.iterdir())
-        self.f = h5py.File(self.path, "w")
+        self._out = H5Output(self.path, "w")
+        self.f = self._out.h5
+        with self._guard():
+            self._head(macro, porous)
+
+    def _head(self, macro, porous):
+        """The parts of a new file that do not change: mesh, Gauss points, tags."""
         mesh = macro.mesh
         pts = np.zeros((mesh.p.shape[1], 3))
         pts[:, :macro.dim] = mesh.p.T
@@ -149,6 +158,25 @@ class Output:
         self.f.attrs["kinematics"] = macro.kinematics
         if porous is not None:
             self.f.attrs["pressure_element"] = porous.p_element
+
+    @contextlib.contextmanager
+    def _guard(self):
+        """A write the disk refuses ends the output: the file is closed as it was at
+        its last flush (every frame is flushed), removed if that cannot be read, and
+        the OutputError naming it is raised."""
+        try:
+            yield
+        except BaseException as err:
+            failure = self._out.failure(err) if self._out is not None else None
+            if failure is None:
+                raise
+            self.f, self._closed = None, True
+            try:
+                with h5py.File(self.path, "r"):
+                    pass
+            except OSError:
+                remove_quietly(self.path)
+            raise failure from None
 
     @staticmethod
     def curve_names(boundaries, saturated=False, platens=()):
@@ -183,12 +211,14 @@ class Output:
         """The open HDF5 file; a restarted one loses its later frames and its curve
         on first use."""
         if self.f is None:
-            self.f = h5py.File(self.path, "a")
-            for name in list(self.f["steps"]):
-                if name not in self._kept:
-                    del self.f["steps"][name]
-            if "curve" in self.f:
-                del self.f["curve"]
+            self._out = H5Output(self.path, "a")
+            self.f = self._out.h5
+            with self._guard():
+                for name in list(self.f["steps"]):
+                    if name not in self._kept:
+                        del self.f["steps"][name]
+                if "curve" in self.f:
+                    del self.f["curve"]
         return self.f
 
     def discard(self):
@@ -199,7 +229,7 @@ class Output:
             return
         self._closed = True
         if self.f is not None:
-            self.f.close()
+            self._out.abandon()
             self.f = None
         if self._kept is None:
             self.path.unlink(missing_ok=True)
@@ -245,16 +275,22 @@ class Output:
         elif not self.frames or self.frames[-1][0] != f"steps/{step:05d}":
             self._frame(step, solver, measures, iterations)
         f = self._file()
-        f.attrs["stopped"] = message
-        f.attrs["last_converged_step"] = int(step)
-        f.attrs["last_converged_load_factor"] = float(solver.t)
-        f.flush()
+        with self._guard():
+            f.attrs["stopped"] = message
+            f.attrs["last_converged_step"] = int(step)
+            f.attrs["last_converged_load_factor"] = float(solver.t)
+            f.flush()
 
     def _frame(self, step, solver, measures, iterations):
+        f = self._file()
+        with self._guard():
+            self._write_frame(f, step, solver, measures, iterations)
+
+    def _write_frame(self, f, step, solver, measures, iterations):
         macro, d = self.macro, self.macro.dim
         u = solver.u
         name = f"steps/{step:05d}"
-        g = self._file().create_group(name)
+        g = f.create_group(name)
         g.attrs["step"] = step
         g.attrs["load_factor"] = solver.t if self.porous is None \
             else solver.schedule.load_factor(solver.t)
@@ -322,20 +358,23 @@ class Output:
         interrupt: drawing takes seconds) the plots; close the HDF5 file."""
         if self._closed:
             return
-        self._closed = True
         f = self._file()
-        for k, v in self.curve.items():
-            f.create_dataset(f"curve/{k}", data=np.asarray(v, dtype=np.float64))
-        keys = [k for k in f[self.frames[0][0]]
-                if isinstance(f[self.frames[0][0]][k], h5py.Dataset)] \
-            if self.frames else []
-        f.close()
-        self.f = None
+        with self._guard():
+            for k, v in self.curve.items():
+                f.create_dataset(f"curve/{k}", data=np.asarray(v, dtype=np.float64))
+            keys = [k for k in f[self.frames[0][0]]
+                    if isinstance(f[self.frames[0][0]][k], h5py.Dataset)] \
+                if self.frames else []
+            self._closed = True
+            self.f = None
+            self._out.close()
         self._xdmf(keys)
         if not plots:
             return
         try:
             self._plots()
+        except OutputError:
+            raise  # the disk refused it: an error, like any output that cannot be written
         except Exception as err:  # noqa: BLE001 - a plot must not lose a finished run
             log.warning("plots not written: %s", err)
 
@@ -380,9 +419,9 @@ class Output:
                 att = ET.SubElement(grid, "Attribute", {"Name": k, "AttributeType":
                                                          "Scalar", "Center": "Cell"})
                 item(att, f"{name}/{k}", (cells[1],))
-        tmp = self.dir / "fields.xdmf.tmp"
-        ET.ElementTree(root).write(tmp, xml_declaration=True, encoding="utf-8")
-        os.replace(tmp, self.dir / "fields.xdmf")
+        write_bytes_atomic(self.dir / "fields.xdmf",
+                           lambda fh: ET.ElementTree(root).write(
+                               fh, xml_declaration=True, encoding="utf-8"))
 
     def _plots(self):
         import matplotlib

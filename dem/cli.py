@@ -234,8 +234,11 @@ def _open_writer(path, output, overwrite):
 
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        for p in existing:
-            p.unlink()
     except OSError as err:
-        raise OutputError(path, err) from None
+        raise OutputError(path.parent, err) from None
+    for p in existing:
+        try:
+            p.unlink()
+        except OSError as err:
+            raise OutputError(p, err) from None
     return H5Writer(path, every=output.every, contacts=output.contacts)

@@ -302,10 +302,13 @@ class Store:
             for name in list(self.f):
                 if "status" not in self.f[name].attrs:  # cut short while being written
                     del self.f[name]
-            self.f.attrs.update(format=FORMAT, version=VERSION, source=sweep.source,
-                                units=json.dumps({**SUMMARY_UNITS, **UNITS}),
-                                conventions="compression positive for strains, p, q; "
-                                            "stress dataset tension positive")
+            tags = dict(format=FORMAT, version=VERSION, source=sweep.source,
+                        units=json.dumps({**SUMMARY_UNITS, **UNITS}),
+                        conventions="compression positive for strains, p, q; "
+                                    "stress dataset tension positive")
+            for k, v in tags.items():  # a resumed file is only written where it must be
+                if self.f.attrs.get(k) != v:
+                    self.f.attrs[k] = v
             self.f.flush()
             self.stored = {name: str(g.attrs["status"]) for name, g in self.f.items()}
 
@@ -313,8 +316,8 @@ class Store:
     def _guard(self):
         """A write the disk refuses closes the file, which keeps the experiments of
         its last flush (a rerun resumes it), and raises the OutputError naming it. A
-        file this run made that holds no experiment, or that cannot be read, is
-        removed."""
+        file this run made is removed if it holds no experiment or cannot be read; a
+        resumed file is left to the user."""
         import h5py
 
         try:
@@ -328,7 +331,7 @@ class Store:
                     readable = True
             except OSError:
                 readable = False
-            if not readable or (self._created and not self.stored):
+            if self._created and not (readable and self.stored):
                 with contextlib.suppress(OSError):  # a read-only disk keeps it
                     self.path.unlink(missing_ok=True)
             raise failure from None

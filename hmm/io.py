@@ -86,6 +86,15 @@ def _second_panel(dem, void):
     return dem, "share of Gauss points running DEM [-]", "Greys", (0.0, 1.0)
 
 
+def _readable(path):
+    """Whether ``path`` opens as an HDF5 file."""
+    try:
+        with h5py.File(path, "r"):
+            return True
+    except OSError:
+        return False
+
+
 class Output:
     """Writes the steps of a run into ``directory``.
 
@@ -162,8 +171,9 @@ class Output:
     @contextlib.contextmanager
     def _guard(self):
         """A write the disk refuses ends the output: the file is closed as it was at
-        its last flush (every frame is flushed), removed if that cannot be read, and
-        the OutputError naming it is raised."""
+        its last flush (every frame is flushed) and the OutputError naming it is
+        raised. A new file is removed if it holds no frame or cannot be read; a
+        restarted one is left to the user."""
         try:
             yield
         except BaseException as err:
@@ -171,10 +181,7 @@ class Output:
             if failure is None:
                 raise
             self.f, self._closed = None, True
-            try:
-                with h5py.File(self.path, "r"):
-                    pass
-            except OSError:
+            if self._kept is None and not (self.frames and _readable(self.path)):
                 remove_quietly(self.path)
             raise failure from None
 

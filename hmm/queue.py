@@ -302,9 +302,16 @@ def _send_outcome(comm, value):
 
 def _lead(sweep, out_dir, overwrite, progress, master):
     t0 = time.perf_counter()
+    from dem.io.files import OutputError
+    from dem.io.plan import check_new_files
+
     out = Path(sweep.out_dir if out_dir is None else out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     files = [out / name for name in OUTPUTS]
+    check_new_files(files, True)  # a directory in the place of an output, before a run
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OutputError(out, err) from None
     store = Store(files[0], sweep, overwrite)
     try:
         todo = [e for e in sweep.experiments if e.id not in store.stored]

@@ -116,7 +116,20 @@ class GuardedIO(io.RawIOBase):
             raise
 
     def write(self, data):
-        return self._guarded(self._fh.write, data, done=len(data))
+        return self._guarded(self._write_all, data, done=len(data))
+
+    def _write_all(self, data):
+        """Write every byte: an unbuffered write may take only part of them (the
+        last bytes a disk has room for), and h5py's driver does not ask again; the
+        next attempt raises the cause."""
+        view = memoryview(data).cast("B")
+        done = 0
+        while done < len(view):
+            n = self._fh.write(view[done:])
+            if not n:
+                raise OSError(errno.EIO, f"{self.path}: a write took no bytes")
+            done += n
+        return done
 
     def truncate(self, size=None):
         return self._guarded(self._fh.truncate, size, done=size)

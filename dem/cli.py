@@ -1,7 +1,8 @@
 """The ``dem`` command; ``dem run scene.toml`` runs a TOML scene (:mod:`dem.io.scene`).
 
 Exit status: 0 on success, 1 when the simulation fails (:class:`dem.SimulationError`),
-2 on bad input (invalid scene, unreadable file, existing output, bad arguments). Errors
+2 on bad input (invalid scene, unreadable file, existing output, bad arguments) or an
+output the disk refuses (full, read-only: :class:`dem.io.files.OutputError`). Errors
 are one line on stderr, ``dem: error: ...``, never a traceback.
 """
 
@@ -60,7 +61,8 @@ def _parser():
         "run", help="run a scene file",
         description="Validate, build and run a TOML scene; write HDF5 output.",
         epilog="The scene format is documented in dem.io.scene (SCHEMA). Exit status: "
-               "0 done, 1 the simulation failed, 2 bad input.")
+               "0 done, 1 the simulation failed, 2 bad input or an output the disk "
+               "refuses.")
     run.add_argument("scene", type=Path, help="the scene file (TOML)")
     run.add_argument("-o", "--output", type=Path, metavar="DIR",
                      help="output directory (overrides [output] dir)")

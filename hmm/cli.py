@@ -12,7 +12,8 @@
     ranks; resumable.
 
 Exit status: 0 on success, 1 when the run fails (no convergence, a micro model that
-cannot relax), 2 on bad input (invalid file, existing output, bad arguments), 130 on
+cannot relax), 2 on bad input (invalid file, existing output, bad arguments) or an
+output the disk refuses (full, read-only: :class:`dem.io.files.OutputError`), 130 on
 SIGINT (Ctrl-C) and 143 on SIGTERM, on any rank under ``mpiexec``. Errors are one line
 on stderr, ``hmm <command>: error: ...``, never a traceback.
 

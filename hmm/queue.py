@@ -282,8 +282,8 @@ def _master(sweep, out_dir, overwrite, progress, master):
         master.watch.check()  # a signal while the summaries were written
     except Interrupted:
         raise  # every rank stops on its own (SignalWatch)
-    except SceneError as exc:
-        master.shutdown(str(exc))
+    except (SceneError, OSError) as exc:  # bad input, or an output the disk refuses:
+        master.shutdown(str(exc))          # every rank ends with status 2
         _send_outcome(master.comm, str(exc))
         raise
     except BaseException:

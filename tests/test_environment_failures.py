@@ -267,6 +267,23 @@ def test_hmm_rve_on_a_disk_that_fills_names_the_file(disk, free_kib):
     assert_clean(disk)
 
 
+@pytest.mark.parametrize("name, free_kib", [("hmm batch", 4), ("hmm run", 60)])
+def test_under_mpiexec_every_rank_ends_with_status_2(disk, name, free_kib):
+    """Rank 0 names the file once; the workers end with the same status (MPICH's
+    ``mpiexec`` ORs the ranks' statuses: a worker's 1 made it 3)."""
+    argv, file, text, _ = COMMANDS[name]
+    (disk / file).write_text(text)
+    fill(disk, free_kib)
+    mpiexec = str(Path(sys.executable).parent / "mpiexec")
+    env = {**os.environ, "MPLBACKEND": "Agg", "NUMBA_NUM_THREADS": "1"}
+    done = subprocess.run([mpiexec, "-n", "2", sys.executable, *argv, file, "-o", "out",
+                           "--no-progress"], cwd=disk, capture_output=True, text=True,
+                          env=env, timeout=300)
+    assert done.returncode == 2, done.stderr
+    assert_one_line(name, done.stderr, "out/", "No space left on device")
+    assert_clean(disk)
+
+
 # --------------------------------------------------------------------------- read-only
 @pytest.mark.parametrize("name", list(COMMANDS))
 def test_a_read_only_filesystem_is_one_line_and_changes_nothing(disk, name):

@@ -389,3 +389,18 @@ def test_a_failed_write_is_not_retried(tmp_path):
         out.close()
     assert os.path.getsize(tmp_path / "x.h5") == size
 
+
+
+def test_a_file_being_written_is_locked_like_hdf5_locks_it(tmp_path):
+    """A second writer (another process, or this one) is refused before it empties
+    the file, as HDF5's own lock refused it."""
+    first = H5Output(tmp_path / "x.h5", "w")
+    first.h5.create_dataset("x", data=np.arange(3.0))
+    first.h5.flush()
+    for mode in ("w", "a"):
+        with pytest.raises(OutputError, match="x.h5: the file is open in another process"):
+            H5Output(tmp_path / "x.h5", mode)
+    first.close()
+    again = H5Output(tmp_path / "x.h5", "a")
+    np.testing.assert_array_equal(again.h5["x"][()], np.arange(3.0))
+    again.close()

@@ -36,6 +36,7 @@ _ADVICE = {
     errno.EACCES: "; choose another --output or change the directory's permissions",
     errno.EPERM: "; choose another --output or change the directory's permissions",
     errno.EISDIR: "; remove the directory or choose another --output",
+    errno.EBUSY: "; wait for it to end or choose another --output",
 }
 
 
@@ -50,9 +51,10 @@ class OutputError(OSError):
 
     def __init__(self, path, cause):
         code = getattr(cause, "errno", None)
-        super().__init__(code, getattr(cause, "strerror", None) or str(cause))
+        strerror = getattr(cause, "strerror", None)
+        super().__init__(code, strerror or str(cause))
         self.filename = os.fspath(path)
-        what = os.strerror(code) if code else " ".join(str(cause).split())
+        what = (strerror or os.strerror(code)) if code else " ".join(str(cause).split())
         advice = _ADVICE.get(code, "")
         sep = " " if advice.startswith("(") else ""
         self.message = f"cannot write {self.filename}: {what}{sep}{advice}"
@@ -84,9 +86,31 @@ class GuardedIO(io.RawIOBase):
     def __init__(self, path, mode="w"):
         super().__init__()
         self.path = os.fspath(path)
-        self._fh = open(self.path, {"w": "w+b", "r+": "r+b"}[mode], buffering=0)  # noqa: SIM115
+        flags = os.O_RDWR | (os.O_CREAT if mode == "w" else 0)
+        self._fh = open(os.open(self.path, flags, 0o666), "r+b", buffering=0)  # noqa: SIM115
         #: the first OSError of a write, or None
         self.error = None
+        self._lock()  # before emptying it: a file another process writes is left alone
+        if mode == "w":
+            self._guarded(self._fh.truncate, 0)
+
+    def _lock(self):
+        """Hold the exclusive lock HDF5 itself takes on a file it writes, so that
+        another process cannot write or read it half-done; skipped where HDF5 skips it
+        (``HDF5_USE_FILE_LOCKING=FALSE``, a filesystem without locks)."""
+        import fcntl
+
+        if os.environ.get("HDF5_USE_FILE_LOCKING", "").upper() == "FALSE":
+            return
+        try:
+            fcntl.flock(self._fh.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            self._fh.close()
+            raise OSError(errno.EBUSY, "the file is open in another process") from None
+        except OSError as err:
+            if err.errno not in (errno.ENOSYS, errno.ENOLCK, errno.EOPNOTSUPP):
+                self._fh.close()
+                raise
 
     def readable(self):
         return True

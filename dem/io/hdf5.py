@@ -67,7 +67,9 @@ Custom shapes (a user SDF) have no vertices: they appear as particles only (a gl
 Crash safety: frames are written to ``path + ".tmp"`` (flushed after every frame) and
 the file is renamed to ``path`` with :func:`os.replace` only by :meth:`H5Writer.close`,
 so a killed run never leaves a truncated file at ``path``; ``path.tmp`` may remain and
-usually holds the frames flushed before the crash.
+usually holds the frames flushed before the crash. A write the disk refuses (full,
+read-only) removes ``path.tmp`` and raises :class:`~dem.io.files.OutputError`, one
+line naming ``path`` (:mod:`dem.io.files`).
 """
 
 import contextlib

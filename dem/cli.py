@@ -1,7 +1,8 @@
 """The ``dem`` command; ``dem run scene.toml`` runs a TOML scene (:mod:`dem.io.scene`).
 
 Exit status: 0 on success, 1 when the simulation fails (:class:`dem.SimulationError`),
-2 on bad input (invalid scene, unreadable file, existing output, bad arguments). Errors
+2 on bad input (invalid scene, unreadable file, existing output, bad arguments) or an
+output the disk refuses (full, read-only: :class:`dem.io.files.OutputError`). Errors
 are one line on stderr, ``dem: error: ...``, never a traceback.
 """
 
@@ -60,7 +61,8 @@ def _parser():
         "run", help="run a scene file",
         description="Validate, build and run a TOML scene; write HDF5 output.",
         epilog="The scene format is documented in dem.io.scene (SCHEMA). Exit status: "
-               "0 done, 1 the simulation failed, 2 bad input.")
+               "0 done, 1 the simulation failed, 2 bad input or an output the disk "
+               "refuses.")
     run.add_argument("scene", type=Path, help="the scene file (TOML)")
     run.add_argument("-o", "--output", type=Path, metavar="DIR",
                      help="output directory (overrides [output] dir)")
@@ -121,6 +123,7 @@ def _error(msg, code):
 
 
 def _cmd_run(args):
+    from .io.files import OutputError
     from .io.scene import SceneError, build_simulation, load_scene
     from .simulation import SimulationError
 
@@ -156,13 +159,17 @@ def _cmd_run(args):
             writer(sim)  # the initial frame; the run adds one every `every` steps
         t0 = time.perf_counter()
         rest = _run(sim, n_steps, scene["simulation"]["rest_speed"], progress, writer)
+        if writer is not None:
+            writer.close()
+    except OutputError as exc:  # the disk refused a write: the file is removed
+        return _error(exc, EXIT_USAGE)
     except SimulationError as exc:
         return _error(f"simulation failed: {exc}", EXIT_FAILED)
     except KeyboardInterrupt:
         return _error(f"interrupted at step {sim.step}", 130)
     finally:
         if writer is not None:
-            writer.close()
+            _close_quietly(writer)
     wall = time.perf_counter() - t0
     n_steps = sim.step
     rate = f" ({n_steps / wall:.3g} steps/s)" if wall > 0 and n_steps else ""
@@ -188,6 +195,17 @@ def _run(sim, n_steps, rest_speed, progress, writer):
         writer(sim)
     return (f", at rest (below {rest_speed:g} m/s)" if at_rest
             else f", not at rest (still above {rest_speed:g} m/s)")
+
+
+def _close_quietly(writer):
+    """Close ``writer`` after another error, which is the one reported: its own
+    OutputError would be a second line."""
+    from .io.files import OutputError
+
+    try:
+        writer.close()
+    except OutputError as exc:
+        log.debug("%s", exc)
 
 
 def _dry_run(args, sim, out_file, n_steps, inserted=0):
@@ -235,7 +253,15 @@ def _open_writer(path, output, overwrite, config=None):
         return None
     xdmf = [Path(p) for p in xdmf_files(path.with_suffix(".xdmf")).values()]
     existing = refuse_existing((path, *xdmf), overwrite)
-    path.parent.mkdir(parents=True, exist_ok=True)
+    from .io.files import OutputError
+
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OutputError(path.parent, err) from None
     for p in existing:
-        p.unlink()
+        try:
+            p.unlink()
+        except OSError as err:
+            raise OutputError(p, err) from None
     return H5Writer(path, every=output.every, contacts=output.contacts, config=config)

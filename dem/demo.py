@@ -199,7 +199,7 @@ def _parser():
         description="Pour spheres into a box under gravity until they settle; write "
                     "HDF5 + XDMF frames and a PNG summary.",
         epilog="Exit status: 0 done, 2 bad input (bad arguments, existing output "
-               "without --overwrite).")
+               "without --overwrite, an output the disk refuses).")
     parser.add_argument("--version", action="version", version=version_line("dem"),
                         help="print the version and exit")
     parser.add_argument("-o", "--output", default=os.path.join("output", "demo"),
@@ -227,6 +227,7 @@ def main(argv=None):
     import sys
 
     from .cli import UsageError, refuse_existing
+    from .io.files import OutputError
 
     def error(msg):
         print("python -m dem.demo: error: " + " ".join(str(msg).split()), file=sys.stderr)
@@ -254,9 +255,13 @@ def main(argv=None):
     set_threads(args.threads)
     logging.basicConfig(level=logging.WARNING)
     print(f"pouring {args.n} spheres (the first run compiles the kernels) ...")
-    result = run_demo(args.output, n_spheres=args.n, seed=args.seed, t_max=args.t_max)
     png = os.path.join(args.output, "pour.png")
-    save_figure(visualize(result), png, dpi=120, data="pour.h5")
+    try:
+        result = run_demo(args.output, n_spheres=args.n, seed=args.seed,
+                          t_max=args.t_max)
+        save_figure(visualize(result), png, dpi=120, data="pour.h5")
+    except OutputError as exc:  # the disk refused a file (full, read-only, ...)
+        return error(exc)
     sim = result["sim"]
     state = "near rest" if result["at_rest"] else "not yet at rest"
     ke, released = result["kinetic"][-1], result["released"]

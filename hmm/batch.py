@@ -19,6 +19,7 @@ ranks or on interruptions; only ``wall_time`` and ``rank`` (run metadata) do.
 ``docs/batch.md`` documents the format, the files and the command.
 """
 
+import contextlib
 import copy
 import csv
 import difflib
@@ -283,6 +284,8 @@ class Store:
     def __init__(self, path, sweep, overwrite):
         import h5py
 
+        from dem.io.files import H5Output
+
         self.path, self.sweep = Path(path), sweep
         if overwrite and self.path.exists():
             self.path.unlink()
@@ -293,17 +296,48 @@ class Store:
             except OSError as exc:
                 raise SceneError(f"{self.path}: cannot read the batch file ({exc}); "
                                  f"pass --overwrite to start afresh") from None
-        self.f = h5py.File(self.path, "a")
-        for name in list(self.f):
-            if "status" not in self.f[name].attrs:  # cut short while being written
-                del self.f[name]
-        stamp(self.f, FORMAT, VERSION, sweep.data)
-        self.f.attrs.update(source=sweep.source,
-                            units=json.dumps({**SUMMARY_UNITS, **UNITS}),
-                            conventions="compression positive for strains, p, q; "
-                                        "stress dataset tension positive")
-        self.f.flush()
-        self.stored = {name: str(g.attrs["status"]) for name, g in self.f.items()}
+        self._created = not self.path.exists()
+        self.stored = {}
+        self._out = H5Output(self.path, "a")
+        self.f = self._out.h5
+        with self._guard():
+            for name in list(self.f):
+                if "status" not in self.f[name].attrs:  # cut short while being written
+                    del self.f[name]
+            if self.f.attrs.get("format") != FORMAT:  # a new file (a resumed one is ours)
+                stamp(self.f, FORMAT, VERSION, sweep.data)
+            tags = dict(source=sweep.source, units=json.dumps({**SUMMARY_UNITS, **UNITS}),
+                        conventions="compression positive for strains, p, q; "
+                                    "stress dataset tension positive")
+            for k, v in tags.items():  # a resumed file is only written where it must be
+                if self.f.attrs.get(k) != v:
+                    self.f.attrs[k] = v
+            self.f.flush()
+            self.stored = {name: str(g.attrs["status"]) for name, g in self.f.items()}
+
+    @contextlib.contextmanager
+    def _guard(self):
+        """A write the disk refuses closes the file, which keeps the experiments of
+        its last flush (a rerun resumes it), and raises the OutputError naming it. A
+        file this run made is removed if it holds no experiment or cannot be read; a
+        resumed file is left to the user."""
+        import h5py
+
+        try:
+            yield
+        except BaseException as err:
+            failure = self._out.failure(err)
+            if failure is None:
+                raise
+            try:
+                with h5py.File(self.path, "r"):
+                    readable = True
+            except OSError:
+                readable = False
+            if self._created and not (readable and self.stored):
+                with contextlib.suppress(OSError):  # a read-only disk keeps it
+                    self.path.unlink(missing_ok=True)
+            raise failure from None
 
     def _check(self, f, sweep):
         """Refuse a file that is not a batch of this sweep: another program's (its
@@ -335,16 +369,18 @@ class Store:
         return g
 
     def done(self, e, curves, summary, rank):
-        g = self._group(e, rank)
-        for name, values in curves.items():
-            g.create_dataset(name, data=values).attrs.update(curve_attrs(name))
-        g.attrs.update(summary)
-        self._finish(g, "done")
+        with self._guard():
+            g = self._group(e, rank)
+            for name, values in curves.items():
+                g.create_dataset(name, data=values).attrs.update(curve_attrs(name))
+            g.attrs.update(summary)
+            self._finish(g, "done")
 
     def failed(self, e, message, rank):
-        g = self._group(e, rank)
-        g.attrs["message"] = message
-        self._finish(g, "failed")
+        with self._guard():
+            g = self._group(e, rank)
+            g.attrs["message"] = message
+            self._finish(g, "failed")
 
     def _finish(self, g, status):
         g.attrs["status"] = status  # last: a group without it is incomplete
@@ -352,7 +388,7 @@ class Store:
         self.stored[g.name.lstrip("/")] = status
 
     def close(self):
-        self.f.close()
+        self._out.close()
 
 
 def read_batch(path):
@@ -384,9 +420,9 @@ def write_summaries(h5, sweep, csv_path, png_path):
     """summary.csv (a row per experiment) and summary.png from ``batch.h5``.
 
     Each is written to a temporary file, then renamed; a figure that cannot be drawn
-    is a logged warning.
+    is a logged warning, a file the disk refuses an OutputError.
     """
-    from dem.io.hdf5 import publish
+    from dem.io.files import OutputError, write_text_atomic
 
     stored = read_batch(h5)
     rows = [(e, stored.get(e.id, {"attrs": {"status": "not run"}})["attrs"])
@@ -399,11 +435,11 @@ def write_summaries(h5, sweep, csv_path, png_path):
         w.writerow([e.id, a["status"], *(_cell(_value(e, p)) for p in sweep.parameters),
                     *(_cell(a[c[1]]) if c[1] in a else "" for c in CSV_COLUMNS),
                     a.get("message", "")])
-    tmp = csv_path.with_name(csv_path.name + ".tmp")
-    tmp.write_text(text.getvalue())
-    publish(tmp, csv_path)
+    write_text_atomic(csv_path, text.getvalue())
     try:
         _write_figure(png_path, sweep, rows)
+    except OutputError:
+        raise  # the disk refused it: an error, like any output that cannot be written
     except Exception as exc:  # noqa: BLE001 - a plot must not lose a finished batch
         log.warning("%s not written: %s: %s", png_path, type(exc).__name__, exc)
 

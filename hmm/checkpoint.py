@@ -26,7 +26,8 @@ import h5py
 import numpy as np
 
 from dem.io.checkpoint import state_units
-from dem.io.hdf5 import publish, read_bounded
+from dem.io.files import write_h5_atomic
+from dem.io.hdf5 import read_bounded
 from dem.io.meta import COMPRESSION, ONE, TENSION, label, rules, stamp
 
 from .io import field_units
@@ -75,35 +76,30 @@ def checkpoint_units(dim):
 
 def save(path, problem, step, solver, curve, micro_states):
     """Write a checkpoint (rank 0) atomically."""
-    path = os.fspath(path)
-    tmp = path + ".tmp"
-    try:
-        with h5py.File(tmp, "w") as f:
-            stamp(f, FORMAT, VERSION, problem)
-            f.attrs["step"] = int(step)
-            f.attrs["problem"] = problem_digest(problem)
-            g = f.create_group("solver")
-            g.attrs["t"] = float(solver.t)
-            g.attrs["cuts"] = int(solver.cuts)
-            g.attrs["trials"] = int(solver.farm.n_trials)
-            g.create_dataset("u", data=solver.u)
-            g.create_dataset("sigma", data=solver.sigma)
-            g.create_dataset("tangent", data=solver.tangent)
-            if getattr(solver, "p", None) is not None:  # a saturated problem
-                g.create_dataset("p", data=solver.p)
-            g.create_dataset("iterations", data=np.asarray(solver.iterations, np.int64))
-            for k, v in curve.items():
-                f.create_dataset(f"curve/{k}", data=np.asarray(v, dtype=np.float64))
-            for pt, state in micro_states.items():
-                mg = f.create_group(f"micro/{pt:06d}")
-                for k, v in state.items():
-                    mg.create_dataset(k, data=np.asarray(v))
-            label(f, checkpoint_units(solver.sigma.shape[-1]))
-        publish(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-    return path
+
+    def fill(f):
+        stamp(f, FORMAT, VERSION, problem)
+        f.attrs["step"] = int(step)
+        f.attrs["problem"] = problem_digest(problem)
+        g = f.create_group("solver")
+        g.attrs["t"] = float(solver.t)
+        g.attrs["cuts"] = int(solver.cuts)
+        g.attrs["trials"] = int(solver.farm.n_trials)
+        g.create_dataset("u", data=solver.u)
+        g.create_dataset("sigma", data=solver.sigma)
+        g.create_dataset("tangent", data=solver.tangent)
+        if getattr(solver, "p", None) is not None:  # a saturated problem
+            g.create_dataset("p", data=solver.p)
+        g.create_dataset("iterations", data=np.asarray(solver.iterations, np.int64))
+        for k, v in curve.items():
+            f.create_dataset(f"curve/{k}", data=np.asarray(v, dtype=np.float64))
+        for pt, state in micro_states.items():
+            mg = f.create_group(f"micro/{pt:06d}")
+            for k, v in state.items():
+                mg.create_dataset(k, data=np.asarray(v))
+        label(f, checkpoint_units(solver.sigma.shape[-1]))
+
+    return write_h5_atomic(path, fill)
 
 
 class Checkpoint:

@@ -12,7 +12,8 @@
     ranks; resumable.
 
 Exit status: 0 on success, 1 when the run fails (no convergence, a micro model that
-cannot relax), 2 on bad input (invalid file, existing output, bad arguments), 130 on
+cannot relax), 2 on bad input (invalid file, existing output, bad arguments) or an
+output the disk refuses (full, read-only: :class:`dem.io.files.OutputError`), 130 on
 SIGINT (Ctrl-C) and 143 on SIGTERM, on any rank under ``mpiexec``. Errors are one line
 on stderr, ``hmm <command>: error: ...``, never a traceback.
 
@@ -223,6 +224,7 @@ def _directory(problem, args):
 
 
 def _solve(problem, args, prog):
+    from dem.io.files import OutputError
     from dem.io.scene import SceneError
     from dem.simulation import SimulationError
 
@@ -239,6 +241,10 @@ def _solve(problem, args, prog):
                               progress=False if args.no_progress else None, echo=print,
                               restart=getattr(args, "restart", False),
                               stop_after=getattr(args, "stop_after", None))
+    except OutputError as err:  # the disk refused a file; say where a restart starts
+        note = _checkpoint_note(directory)
+        return _error(prog, err if note.startswith("no ") else f"{err}; {note}",
+                      EXIT_USAGE)
     except (SceneError, OSError, ValueError) as err:
         return _error(prog, err, EXIT_USAGE)
     except (SolverError, SimulationError) as err:

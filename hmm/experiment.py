@@ -812,14 +812,10 @@ SUMMARY_UNITS = {"confining": "Pa", "peak_friction_angle": "deg",
 
 
 def _write_h5(path, result):
-    import h5py
-
-    from dem.io.hdf5 import publish
-
+    from dem.io.files import write_h5_atomic
     from dem.io.meta import stamp
 
-    tmp = path.with_name(path.name + ".tmp")
-    with h5py.File(tmp, "w") as f:
+    def fill(f):
         for name, values in result.curves.items():
             f.create_dataset(name, data=values).attrs.update(curve_attrs(name))
         for name, value in result.summary.items():
@@ -829,7 +825,8 @@ def _write_h5(path, result):
         f.attrs["config"] = json.dumps(result.config)
         f.attrs["conventions"] = ("compression positive for strains, p, q; stress "
                                   "dataset tension positive; engineering strains")
-    publish(tmp, path)
+
+    write_h5_atomic(path, fill)
 
 
 def _write_figure(path, result):

@@ -44,7 +44,6 @@ finite kinematics each grid is the deformed mesh, so ParaView shows the real sha
 
 import contextlib
 import logging
-import os
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
@@ -52,6 +51,7 @@ import h5py
 import numpy as np
 from skfem import MeshHex, MeshQuad, MeshTet, MeshTri
 
+from dem.io.files import H5Output, OutputError, remove_quietly, write_bytes_atomic
 from dem.io.hdf5 import save_figure
 from dem.io import meta
 from dem.io.meta import COMPRESSION, EXTENSION, ONE, TENSION, check_format, rules, stamp
@@ -128,6 +128,15 @@ def _second_panel(dem, void):
     return dem, "share of Gauss points running DEM [-]", "Greys", (0.0, 1.0)
 
 
+def _readable(path):
+    """Whether ``path`` opens as an HDF5 file."""
+    try:
+        with h5py.File(path, "r"):
+            return True
+    except OSError:
+        return False
+
+
 class Output:
     """Writes the steps of a run into ``directory``.
 
@@ -169,7 +178,7 @@ class Output:
         self.frames = []  # (group name, load factor)
         self.curve = {k: [] for k in self.curve_names(self.boundaries,
                                                       porous is not None, self.platens)}
-        self.f, self._kept, self._closed = None, None, False
+        self.f, self._kept, self._closed, self._out = None, None, False, None
         self._config, self._units = config, field_units(macro.dim)
         self._old_version = None
         if restart is not None:
@@ -177,9 +186,18 @@ class Output:
             return
         if self.path.exists() and not overwrite:
             raise FileExistsError(f"{self.path} exists (pass --overwrite to replace it)")
-        self.dir.mkdir(parents=True, exist_ok=True)
+        try:
+            self.dir.mkdir(parents=True, exist_ok=True)
+        except OSError as err:
+            raise OutputError(self.dir, err) from None
         self._made_dir = not any(self.dir.iterdir())
-        self.f = h5py.File(self.path, "w")
+        self._out = H5Output(self.path, "w")
+        self.f = self._out.h5
+        with self._guard():
+            self._head(macro, porous)
+
+    def _head(self, macro, porous):
+        """The parts of a new file that do not change: mesh, Gauss points, tags."""
         mesh = macro.mesh
         pts = np.zeros((mesh.p.shape[1], 3))
         pts[:, :macro.dim] = mesh.p.T
@@ -190,11 +208,28 @@ class Output:
         self.f.create_dataset("mesh/cells", data=cells)
         self.f.create_dataset("gauss/points", data=macro.gauss_points())
         self.f.create_dataset("gauss/weights", data=macro.weights())
-        stamp(self.f, FORMAT, VERSION, config)
+        stamp(self.f, FORMAT, VERSION, self._config)
         self.f.attrs["kinematics"] = macro.kinematics
         if porous is not None:
             self.f.attrs["pressure_element"] = porous.p_element
         meta.label(self.f, self._units)
+
+    @contextlib.contextmanager
+    def _guard(self):
+        """A write the disk refuses ends the output: the file is closed as it was at
+        its last flush (every frame is flushed) and the OutputError naming it is
+        raised. A new file is removed if it holds no frame or cannot be read; a
+        restarted one is left to the user."""
+        try:
+            yield
+        except BaseException as err:
+            failure = self._out.failure(err) if self._out is not None else None
+            if failure is None:
+                raise
+            self.f, self._closed = None, True
+            if self._kept is None and not (self.frames and _readable(self.path)):
+                remove_quietly(self.path)
+            raise failure from None
 
     @staticmethod
     def curve_names(boundaries, saturated=False, platens=()):
@@ -239,14 +274,16 @@ class Output:
         """The open HDF5 file; a restarted one loses its later frames and its curve
         on first use."""
         if self.f is None:
-            self.f = h5py.File(self.path, "a")
-            for name in list(self.f["steps"]):
-                if name not in self._kept:
-                    del self.f["steps"][name]
-            if "curve" in self.f:
-                del self.f["curve"]
-            if self._old_version is not None:
-                self._upgrade(self.f)
+            self._out = H5Output(self.path, "a")
+            self.f = self._out.h5
+            with self._guard():
+                for name in list(self.f["steps"]):
+                    if name not in self._kept:
+                        del self.f["steps"][name]
+                if "curve" in self.f:
+                    del self.f["curve"]
+                if self._old_version is not None:
+                    self._upgrade(self.f)
         return self.f
 
     def _upgrade(self, f):
@@ -269,7 +306,7 @@ class Output:
             return
         self._closed = True
         if self.f is not None:
-            self.f.close()
+            self._out.abandon()
             self.f = None
         if self._kept is None:
             self.path.unlink(missing_ok=True)
@@ -315,16 +352,22 @@ class Output:
         elif not self.frames or self.frames[-1][0] != f"steps/{step:05d}":
             self._frame(step, solver, measures, iterations)
         f = self._file()
-        f.attrs["stopped"] = message
-        f.attrs["last_converged_step"] = int(step)
-        f.attrs["last_converged_load_factor"] = float(solver.t)
-        f.flush()
+        with self._guard():
+            f.attrs["stopped"] = message
+            f.attrs["last_converged_step"] = int(step)
+            f.attrs["last_converged_load_factor"] = float(solver.t)
+            f.flush()
 
     def _frame(self, step, solver, measures, iterations):
+        f = self._file()
+        with self._guard():
+            self._write_frame(f, step, solver, measures, iterations)
+
+    def _write_frame(self, f, step, solver, measures, iterations):
         macro, d = self.macro, self.macro.dim
         u = solver.u
         name = f"steps/{step:05d}"
-        g = self._file().create_group(name)
+        g = f.create_group(name)
         g.attrs["step"] = step
         g.attrs["load_factor"] = solver.t if self.porous is None \
             else solver.schedule.load_factor(solver.t)
@@ -393,21 +436,24 @@ class Output:
         interrupt: drawing takes seconds) the plots; close the HDF5 file."""
         if self._closed:
             return
-        self._closed = True
         f = self._file()
-        for k, v in self.curve.items():
-            f.create_dataset(f"curve/{k}", data=np.asarray(v, dtype=np.float64))
-        meta.label(f, self._units)
-        keys = [k for k in f[self.frames[0][0]]
-                if isinstance(f[self.frames[0][0]][k], h5py.Dataset)] \
-            if self.frames else []
-        f.close()
-        self.f = None
+        with self._guard():
+            for k, v in self.curve.items():
+                f.create_dataset(f"curve/{k}", data=np.asarray(v, dtype=np.float64))
+            meta.label(f, self._units)
+            keys = [k for k in f[self.frames[0][0]]
+                    if isinstance(f[self.frames[0][0]][k], h5py.Dataset)] \
+                if self.frames else []
+            self._closed = True
+            self.f = None
+            self._out.close()
         self._xdmf(keys)
         if not plots:
             return
         try:
             self._plots()
+        except OutputError:
+            raise  # the disk refused it: an error, like any output that cannot be written
         except Exception as err:  # noqa: BLE001 - a plot must not lose a finished run
             log.warning("plots not written: %s", err)
 
@@ -452,9 +498,9 @@ class Output:
                 att = ET.SubElement(grid, "Attribute", {"Name": k, "AttributeType":
                                                          "Scalar", "Center": "Cell"})
                 item(att, f"{name}/{k}", (cells[1],))
-        tmp = self.dir / "fields.xdmf.tmp"
-        ET.ElementTree(root).write(tmp, xml_declaration=True, encoding="utf-8")
-        os.replace(tmp, self.dir / "fields.xdmf")
+        write_bytes_atomic(self.dir / "fields.xdmf",
+                           lambda fh: ET.ElementTree(root).write(
+                               fh, xml_declaration=True, encoding="utf-8"))
 
     def _plots(self):
         import matplotlib

@@ -282,8 +282,8 @@ def _master(sweep, out_dir, overwrite, progress, master):
         master.watch.check()  # a signal while the summaries were written
     except Interrupted:
         raise  # every rank stops on its own (SignalWatch)
-    except SceneError as exc:
-        master.shutdown(str(exc))
+    except (SceneError, OSError) as exc:  # bad input, or an output the disk refuses:
+        master.shutdown(str(exc))          # every rank ends with status 2
         _send_outcome(master.comm, str(exc))
         raise
     except BaseException:
@@ -302,9 +302,16 @@ def _send_outcome(comm, value):
 
 def _lead(sweep, out_dir, overwrite, progress, master):
     t0 = time.perf_counter()
+    from dem.io.files import OutputError
+    from dem.io.plan import check_new_files
+
     out = Path(sweep.out_dir if out_dir is None else out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     files = [out / name for name in OUTPUTS]
+    check_new_files(files, True)  # a directory in the place of an output, before a run
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise OutputError(out, err) from None
     store = Store(files[0], sweep, overwrite)
     try:
         todo = [e for e in sweep.experiments if e.id not in store.stored]

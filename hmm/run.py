@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from dem.simulation import progress_bar
+from dem.io.files import OutputError
 
 from .checkpoint import Checkpoint
 from .checkpoint import save as save_checkpoint
@@ -161,16 +162,23 @@ def _solve_and_close(args, comm):
     after an interrupt without the figures (the user asked to stop now, and drawing
     takes seconds)."""
     farm, out, ck = args[2], args[5], args[9]
-    plots = True
+    plots, failed = True, None
     try:
         return _solve(*args)
     except (Interrupted, KeyboardInterrupt):
         plots = False
         raise
+    except OutputError as err:  # the disk refused a file: no figures, and that error
+        plots, failed = False, err
+        raise
     finally:
         if comm is not None:
             farm.close()
-        out.close(plots=plots)
+        try:
+            out.close(plots=plots)
+        except OutputError:
+            if failed is None:
+                raise
         if ck is not None:
             ck.close()
 

@@ -40,7 +40,8 @@ from ..neighbors import Box
 from ..shapes import Shape
 from ..simulation import Simulation
 from ..state import Bodies
-from .hdf5 import publish, read_bounded
+from .files import OutputError, write_h5_atomic
+from .hdf5 import read_bounded
 from .meta import ONE, TENSION, label, rules, stamp
 
 log = logging.getLogger(__name__)
@@ -258,19 +259,15 @@ def _open(path, fmt):
 
 
 def _write_atomic(path, fill):
-    """Write an HDF5 file with ``fill(h5file)`` into ``path.tmp``, then rename it."""
+    """Write an HDF5 file with ``fill(h5file)`` into ``path.tmp``, then rename it
+    (:func:`dem.io.files.write_h5_atomic`: a failed write is one OutputError)."""
     path = os.fspath(path)
     parent = os.path.dirname(os.path.abspath(path))
-    os.makedirs(parent, exist_ok=True)
-    tmp = path + ".tmp"
     try:
-        with h5py.File(tmp, "w") as f:
-            fill(f)
-        publish(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.remove(tmp)
-    return path
+        os.makedirs(parent, exist_ok=True)
+    except OSError as err:
+        raise OutputError(path, err) from None
+    return write_h5_atomic(path, fill)
 
 
 # ------------------------------------------------------------------ checkpoint

@@ -71,9 +71,12 @@ Custom shapes (a user SDF) have no vertices: they appear as particles only (a gl
 Crash safety: frames are written to ``path + ".tmp"`` (flushed after every frame) and
 the file is renamed to ``path`` with :func:`os.replace` only by :meth:`H5Writer.close`,
 so a killed run never leaves a truncated file at ``path``; ``path.tmp`` may remain and
-usually holds the frames flushed before the crash.
+usually holds the frames flushed before the crash. A write the disk refuses (full,
+read-only) removes ``path.tmp`` and raises :class:`~dem.io.files.OutputError`, one
+line naming ``path`` (:mod:`dem.io.files`).
 """
 
+import contextlib
 import logging
 import os
 import re
@@ -86,6 +89,7 @@ import numpy as np
 from ..observers import Periodic
 from ..rotation import rotation_matrices
 from ..shapes import Shape
+from .files import H5Output, OutputError, publish, remove_quietly, write_bytes_atomic
 from .meta import COMPRESSION, ONE, label, rules, stamp
 from .xdmf import FORMAT, write_xdmf, xdmf_files
 
@@ -154,20 +158,14 @@ def read_bounded(dataset, name=None):
     return dataset[()]
 
 
-def publish(tmp_path, path):
-    """Atomically move a finished file ``tmp_path`` to ``path`` (fsync, then rename)."""
-    with open(tmp_path, "rb+") as fh:
-        os.fsync(fh.fileno())
-    os.replace(tmp_path, path)
-
-
 #: the format tag and version of the project's PNG figures (in their text chunks)
 FIGURE_FORMAT, FIGURE_VERSION = "femxdem.figure", 1
 
 
 def save_figure(fig, path, dpi=120, data=None):
     """Write a matplotlib figure as PNG atomically (a ``.tmp`` file, then
-    :func:`publish`): a reader never sees half a picture.
+    :func:`publish`): a reader never sees half a picture, and a figure that cannot
+    be written is an :class:`~dem.io.files.OutputError` with no ``.tmp`` left.
 
     The PNG's text chunks carry ``format`` (:data:`FIGURE_FORMAT`), ``version``,
     ``Software`` (the project and its version) and, when given, ``data``: the file
@@ -176,14 +174,12 @@ def save_figure(fig, path, dpi=120, data=None):
     from .meta import software
 
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
     meta = {"format": FIGURE_FORMAT, "version": str(FIGURE_VERSION),
             "Software": software()}
     if data is not None:
         meta["data"] = str(data)
-    with open(tmp, "wb") as fh:
-        fig.savefig(fh, format="png", dpi=dpi, metadata=meta)
-    publish(tmp, path)
+    write_bytes_atomic(path, lambda fh: fig.savefig(fh, format="png", dpi=dpi,
+                                                    metadata=meta))
     return path
 
 
@@ -404,17 +400,41 @@ class H5Writer:
         #: the XDMF files written by :meth:`close` (particles first)
         self.xdmf_paths = []
         self._dim = None
+        self._file = None
         parent = os.path.dirname(os.path.abspath(self.path))
-        os.makedirs(parent, exist_ok=True)
-        self._file = h5py.File(self.tmp_path, "w")
-        stamp(self._file, FORMAT, VERSION, config)
-        self._frames = self._file.create_group("frames")
+        try:
+            os.makedirs(parent, exist_ok=True)
+        except OSError as err:
+            raise OutputError(self.path, err) from None
+        self._out = H5Output(self.tmp_path, "w", name=self.path)
+        self._file = self._out.h5
+        with self._guard():
+            stamp(self._file, FORMAT, VERSION, config)
+            self._frames = self._file.create_group("frames")
+
+    @contextlib.contextmanager
+    def _guard(self):
+        """A failed write ends the file: it is closed, its ``.tmp`` removed, and the
+        OutputError naming :attr:`path` raised."""
+        try:
+            yield
+        except BaseException as err:
+            failure = self._out.failure(err)
+            if failure is None:
+                raise
+            self._file = None
+            remove_quietly(self.tmp_path)
+            raise failure from None
 
     # ------------------------------------------------------------------ observer
     def __call__(self, sim):
         """Append one frame of ``sim`` (step, time, bodies and contacts)."""
         if self._file is None:
             raise ValueError(f"H5Writer for {self.path} is closed")
+        with self._guard():
+            self._append(sim)
+
+    def _append(self, sim):
         b = sim.bodies
         if self._dim is None:
             self._dim = int(b.dim)
@@ -524,12 +544,16 @@ class H5Writer:
         """
         if self._file is None:
             return self.path
-        f, self._file = self._file, None
         try:
-            f.attrs["n_frames"] = self.n_frames
+            with self._guard():
+                self._file.attrs["n_frames"] = self.n_frames
+            self._file = None
+            self._out.close(sync=True)
+            publish(self.tmp_path, self.path)
         finally:
-            f.close()
-        publish(self.tmp_path, self.path)
+            self._file = None
+            self._out.abandon()
+            remove_quietly(self.tmp_path)
         write_xdmf(self.path, self.xdmf_path)
         self.xdmf_paths = [p for p in xdmf_files(self.xdmf_path).values()
                            if os.path.exists(p)]

@@ -46,6 +46,8 @@ import xml.etree.ElementTree as ET
 
 import h5py
 
+from .files import write_text_atomic
+
 #: the format tag of the particle-frame files described here (written by
 #: :class:`dem.io.hdf5.H5Writer`, which takes it from this module)
 FORMAT = "dem.h5writer"
@@ -172,12 +174,8 @@ _BUILDERS = {
 
 def _write(root, path):
     ET.indent(root)
-    tmp = path + ".tmp"
-    with open(tmp, "w", encoding="utf-8") as fh:
-        fh.write('<?xml version="1.0" ?>\n')
-        fh.write(ET.tostring(root, encoding="unicode"))
-        fh.write("\n")
-    os.replace(tmp, path)
+    write_text_atomic(path, '<?xml version="1.0" ?>\n'
+                      + ET.tostring(root, encoding="unicode") + "\n")
 
 
 def write_xdmf(h5_path, xdmf_path=None):

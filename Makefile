@@ -54,7 +54,8 @@ test-mpi: $(STAMP)
 
 # Every page of docs/ as written, the long commands included (about 30 minutes).
 docs-walk: $(STAMP)
-	$(PYTEST) tests/test_tutorial.py tests/test_doc_pages.py tests/walk/walk_docs.py
+	$(PYTEST) tests/test_tutorial.py tests/test_doc_pages.py tests/walk/walk_docs.py \
+		tests/walk/walk_paraview.py
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/dem_throughput.py

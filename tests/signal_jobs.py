@@ -10,40 +10,14 @@ import threading
 import time
 from pathlib import Path
 
+from problems import elastic_problem
+
 ROOT = Path(__file__).resolve().parents[1]
 LIMIT_S = 5.0  # the promise: the whole job ends within this after the signal
 START_S = 240.0  # a watchdog for the job's start (imports, a cold numba cache)
 
 #: linear-elastic points, a checkpoint every load step: a long run of cheap steps
-PROBLEM = """
-[mesh]
-size = [1.0, 2.0]
-cells = [2, 2]
-
-[[dirichlet]]
-boundary = "bottom"
-component = "y"
-
-[[dirichlet]]
-boundary = "left"
-component = "x"
-
-[[dirichlet]]
-boundary = "top"
-component = "y"
-value = -0.01
-
-[micro]
-model = "linear_elastic"
-young = 1e6
-poisson = 0.3
-
-[load]
-steps = 5000
-
-[output]
-checkpoint_every = 1
-"""
+PROBLEM = elastic_problem(5000, checkpoint_every=1)
 
 #: experiments of 30 disks, 40 increments each: seconds each, far from done
 SWEEP = """

@@ -18,6 +18,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from problems import elastic_problem
 
 from dem.io.files import H5Output, OutputError, write_h5_atomic
 from dem.io.hdf5 import save_figure
@@ -49,29 +50,7 @@ every = 10
 """
 
 #: two elastic elements: the micro model is analytic, a run takes a second
-PROBLEM = """
-[mesh]
-size = [1.0, 2.0]
-cells = [1, 2]
-[[dirichlet]]
-boundary = "bottom"
-component = "y"
-[[dirichlet]]
-boundary = "top"
-component = "y"
-value = -0.01
-[[dirichlet]]
-boundary = "left"
-component = "x"
-[micro]
-model = "linear_elastic"
-young = 1e6
-poisson = 0.3
-[load]
-steps = 4
-[output]
-checkpoint_every = 1
-"""
+PROBLEM = elastic_problem(4, cells=(1, 2), checkpoint_every=1)
 
 _PACKING = """
 count = 36

@@ -12,6 +12,7 @@ import os
 import h5py
 import numpy as np
 import pytest
+from problems import elastic_problem
 
 import dem
 import hmm
@@ -47,35 +48,7 @@ restitution = 0.5
 every = 20
 """
 
-PROBLEM = """
-[mesh]
-size = [1.0, 2.0]
-cells = [2, 2]
-
-[[dirichlet]]
-boundary = "bottom"
-component = "y"
-
-[[dirichlet]]
-boundary = "left"
-component = "x"
-
-[[dirichlet]]
-boundary = "top"
-component = "y"
-value = -0.01
-
-[micro]
-model = "linear_elastic"
-young = 1e6
-poisson = 0.3
-
-[output]
-checkpoint_every = 1
-
-[load]
-steps = 3
-"""
+PROBLEM = elastic_problem(3, checkpoint_every=1)
 
 
 def _main(module, args, cwd):

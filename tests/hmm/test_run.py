@@ -9,6 +9,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from problems import elastic_problem
 
 from dem.io.scene import SceneError
 from hmm.problem import load_problem, schema_markdown, validate_problem
@@ -16,32 +17,7 @@ from hmm.run import DEMO, run_problem
 
 ROOT = Path(__file__).resolve().parents[2]
 
-ELASTIC = """
-[mesh]
-size = [1.0, 2.0]
-cells = [2, 2]
-
-[[dirichlet]]
-boundary = "bottom"
-component = "y"
-
-[[dirichlet]]
-boundary = "left"
-component = "x"
-
-[[dirichlet]]
-boundary = "top"
-component = "y"
-value = -0.01
-
-[micro]
-model = "linear_elastic"
-young = 1e6
-poisson = 0.3
-
-[load]
-steps = 2
-"""
+ELASTIC = elastic_problem(2)
 
 
 def _hmm(*args, cwd):

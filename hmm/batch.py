@@ -19,7 +19,6 @@ ranks or on interruptions; only ``wall_time`` and ``rank`` (run metadata) do.
 ``docs/batch.md`` documents the format, the files and the command.
 """
 
-import contextlib
 import copy
 import csv
 import difflib
@@ -315,29 +314,18 @@ class Store:
             self.f.flush()
             self.stored = {name: str(g.attrs["status"]) for name, g in self.f.items()}
 
-    @contextlib.contextmanager
     def _guard(self):
         """A write the disk refuses closes the file, which keeps the experiments of
         its last flush (a rerun resumes it), and raises the OutputError naming it. A
         file this run made is removed if it holds no experiment or cannot be read; a
         resumed file is left to the user."""
-        import h5py
+        return self._out.guard(self._abandoned)
 
-        try:
-            yield
-        except BaseException as err:
-            failure = self._out.failure(err)
-            if failure is None:
-                raise
-            try:
-                with h5py.File(self.path, "r"):
-                    readable = True
-            except OSError:
-                readable = False
-            if self._created and not (readable and self.stored):
-                with contextlib.suppress(OSError):  # a read-only disk keeps it
-                    self.path.unlink(missing_ok=True)
-            raise failure from None
+    def _abandoned(self):
+        from dem.io.files import readable_h5, remove_quietly
+
+        if self._created and not (readable_h5(self.path) and self.stored):
+            remove_quietly(self.path)  # a read-only disk keeps it
 
     def _check(self, f, sweep):
         """Refuse a file that is not a batch of this sweep: another program's (its

@@ -51,7 +51,13 @@ import h5py
 import numpy as np
 from skfem import MeshHex, MeshQuad, MeshTet, MeshTri
 
-from dem.io.files import H5Output, OutputError, remove_quietly, write_bytes_atomic
+from dem.io.files import (
+    H5Output,
+    OutputError,
+    readable_h5,
+    remove_quietly,
+    write_bytes_atomic,
+)
 from dem.io.hdf5 import save_figure
 from dem.io import meta
 from dem.io.meta import COMPRESSION, EXTENSION, ONE, TENSION, check_format, rules, stamp
@@ -126,15 +132,6 @@ def _second_panel(dem, void):
     if np.all(dem >= 1.0) and np.all(np.isfinite(void)):
         return void, "void ratio [-]", "magma", (None, None)
     return dem, "share of Gauss points running DEM [-]", "Greys", (0.0, 1.0)
-
-
-def _readable(path):
-    """Whether ``path`` opens as an HDF5 file."""
-    try:
-        with h5py.File(path, "r"):
-            return True
-    except OSError:
-        return False
 
 
 class Output:
@@ -214,22 +211,17 @@ class Output:
             self.f.attrs["pressure_element"] = porous.p_element
         meta.label(self.f, self._units)
 
-    @contextlib.contextmanager
     def _guard(self):
         """A write the disk refuses ends the output: the file is closed as it was at
         its last flush (every frame is flushed) and the OutputError naming it is
         raised. A new file is removed if it holds no frame or cannot be read; a
         restarted one is left to the user."""
-        try:
-            yield
-        except BaseException as err:
-            failure = self._out.failure(err) if self._out is not None else None
-            if failure is None:
-                raise
-            self.f, self._closed = None, True
-            if self._kept is None and not (self.frames and _readable(self.path)):
-                remove_quietly(self.path)
-            raise failure from None
+        return self._out.guard(self._abandoned)
+
+    def _abandoned(self):
+        self.f, self._closed = None, True
+        if self._kept is None and not (self.frames and readable_h5(self.path)):
+            remove_quietly(self.path)
 
     @staticmethod
     def curve_names(boundaries, saturated=False, platens=()):

@@ -227,6 +227,20 @@ class H5Output:
         self.abandon()
         return output_error(self.name, self.io.error or err)
 
+    @contextlib.contextmanager
+    def guard(self, on_failure):
+        """A block of writes: if it raises after a write the disk refused, the file is
+        closed, ``on_failure()`` (the writer's clean-up) called and the
+        :class:`OutputError` raised instead; any other exception passes unchanged."""
+        try:
+            yield
+        except BaseException as err:
+            failure = self.failure(err)
+            if failure is None:
+                raise
+            on_failure()
+            raise failure from None
+
     def abandon(self):
         """Close the file without raising (writes after a failure are dropped)."""
         self._closed = True
@@ -256,6 +270,17 @@ class H5Output:
         self.io.close()
         if self.io.error is not None:
             raise OutputError(self.name, self.io.error)
+
+
+def readable_h5(path):
+    """Whether ``path`` opens as an HDF5 file."""
+    import h5py
+
+    try:
+        with h5py.File(path, "r"):
+            return True
+    except OSError:
+        return False
 
 
 def remove_quietly(path):

@@ -76,7 +76,6 @@ read-only) removes ``path.tmp`` and raises :class:`~dem.io.files.OutputError`, o
 line naming ``path`` (:mod:`dem.io.files`).
 """
 
-import contextlib
 import logging
 import os
 import re
@@ -412,19 +411,14 @@ class H5Writer:
             stamp(self._file, FORMAT, VERSION, config)
             self._frames = self._file.create_group("frames")
 
-    @contextlib.contextmanager
     def _guard(self):
         """A failed write ends the file: it is closed, its ``.tmp`` removed, and the
         OutputError naming :attr:`path` raised."""
-        try:
-            yield
-        except BaseException as err:
-            failure = self._out.failure(err)
-            if failure is None:
-                raise
-            self._file = None
-            remove_quietly(self.tmp_path)
-            raise failure from None
+        return self._out.guard(self._abandoned)
+
+    def _abandoned(self):
+        self._file = None
+        remove_quietly(self.tmp_path)
 
     # ------------------------------------------------------------------ observer
     def __call__(self, sim):

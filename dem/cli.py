@@ -70,6 +70,9 @@ def _parser():
                      help="replace existing output files")
     run.add_argument("--steps", type=int, metavar="N",
                      help="number of steps (overrides [simulation] steps)")
+    run.add_argument("--restart", action="store_true",
+                     help="continue from the checkpoint.h5 beside the particle file (see "
+                          "[output] checkpoint_every) to the scene's step count")
     run.add_argument("--dry-run", action="store_true",
                      help="validate and build the scene, check the output, print the "
                           "plan, then stop; nothing is written")
@@ -122,10 +125,11 @@ def _error(msg, code):
     return code
 
 
-def _cmd_run(args):
-    from .io.files import OutputError
+def _prepare(args):
+    """The scene, its simulation (continued from the checkpoint on ``--restart``) and
+    the :class:`_Run`; or the exit status of a refused input."""
+    from .io.restart import load_scene_checkpoint
     from .io.scene import SceneError, build_simulation, load_scene
-    from .simulation import SimulationError
 
     try:
         scene = load_scene(args.scene)
@@ -140,61 +144,171 @@ def _cmd_run(args):
     except SceneError as exc:
         return _error(exc, EXIT_USAGE)
     out_file = output.file if args.output is None else args.output / output.file.name
-    n_steps = scene["simulation"]["steps"]
+    run = _Run(scene, out_file, output, args.scene.read_text(errors="replace"))
+    if args.restart:
+        try:
+            sim = load_scene_checkpoint(run.checkpoint, scene, sim)
+        except (ValueError, OSError) as exc:
+            return _error(exc, EXIT_USAGE)
+        if sim.step > run.n_steps:
+            return _error(f"--restart: {run.checkpoint} holds step {sim.step}, past the "
+                          f"scene's {run.n_steps} steps (raise --steps)", EXIT_USAGE)
+    return scene, sim, run
+
+
+def _cmd_run(args):
+    from .io.files import OutputError
+    from .simulation import SimulationError
+
+    prepared = _prepare(args)
+    if isinstance(prepared, int):
+        return prepared
+    scene, sim, run = prepared
+    output, out_file, n_steps = run.output, run.out_file, run.n_steps
     if args.dry_run:
         inserted = scene["insert"]["count"] if scene["insert"] else 0
-        return _dry_run(args, sim, out_file, n_steps, inserted)
+        return _dry_run(args, sim, run, n_steps - sim.step, inserted)
     try:
-        writer = _open_writer(out_file, output, args.overwrite,
-                              config=args.scene.read_text(errors="replace"))
+        writer = _open_writer(out_file, output, args.overwrite, config=run.config,
+                              resume_step=sim.step if args.restart else None)
     except OSError as exc:  # existing output, or the directory cannot be made
         return _error(exc, EXIT_USAGE)
     if writer is not None:
         sim.observers.append(writer)
-    progress = sys.stderr.isatty() and not args.no_progress and n_steps > 0
+    progress = sys.stderr.isatty() and not args.no_progress and n_steps > sim.step
     t_start = time.perf_counter()
+    start_step = sim.step
     try:
         sim.prime()  # neighbour lists and first forces; compiles the loop on first use
-        if writer is not None:
+        if writer is not None and not args.restart:
             writer(sim)  # the initial frame; the run adds one every `every` steps
         t0 = time.perf_counter()
-        rest = _run(sim, n_steps, scene["simulation"]["rest_speed"], progress, writer)
+        with _Signals() as signals:
+            rest = run.steps(sim, n_steps - sim.step, progress, writer, signals)
         if writer is not None:
             writer.close()
     except OutputError as exc:  # the disk refused a write: the file is removed
         return _error(exc, EXIT_USAGE)
     except SimulationError as exc:
         return _error(f"simulation failed: {exc}", EXIT_FAILED)
+    except _Stopped as exc:
+        return _error(f"{exc}; {run.checkpoint_note()}", 128 + exc.signum)
     except KeyboardInterrupt:
-        return _error(f"interrupted at step {sim.step}", 130)
+        return _error(f"interrupted at step {sim.step}; {run.checkpoint_note()}", 130)
     finally:
         if writer is not None:
             _close_quietly(writer)
     wall = time.perf_counter() - t0
-    n_steps = sim.step
-    rate = f" ({n_steps / wall:.3g} steps/s)" if wall > 0 and n_steps else ""
+    done = sim.step - start_step
+    rate = f" ({done / wall:.3g} steps/s)" if wall > 0 and done else ""
+    since = f" (from the checkpoint at step {start_step})" if args.restart else ""
     print(f"dem run {args.scene}: {_bodies_line(sim)}\n"
-          f"  steps      {n_steps} x dt = {sim.dt:.4g} s = {sim.time:.4g} s simulated{rest}\n"
+          f"  steps      {sim.step} x dt = {sim.dt:.4g} s = {sim.time:.4g} s simulated"
+          f"{since}{rest}\n"
           f"  wall time  {wall:.3g} s{rate} + {t0 - t_start:.3g} s start-up\n"
           f"  output     {out_file if writer is not None else 'none (no HDF5 writer)'}")
     if writer is not None and writer.xdmf_paths:  # what ParaView and meshio open
         print("  xdmf       " + ", ".join(Path(p).name for p in writer.xdmf_paths))
+    if output.checkpoint_every:
+        print(f"  checkpoint {run.checkpoint} (step {sim.step})")
     return EXIT_OK
 
 
-def _run(sim, n_steps, rest_speed, progress, writer):
-    """Run the scene's steps, or until rest (the state at rest is the last frame);
-    the words the summary adds."""
-    if rest_speed is None:
-        sim.run(n_steps, progress=progress)
-        return ""
-    from .rest import run_until_rest
+class _Stopped(Exception):
+    """SIGINT or SIGTERM stopped the run at a step boundary."""
 
-    _, at_rest = run_until_rest(sim, n_steps, rest_speed, progress=progress)
-    if writer is not None and not writer.trigger(sim.step):
-        writer(sim)
-    return (f", at rest (below {rest_speed:g} m/s)" if at_rest
-            else f", not at rest (still above {rest_speed:g} m/s)")
+    def __init__(self, signum, step):
+        import signal
+
+        self.signum = int(signum)
+        super().__init__(f"interrupted by {signal.Signals(signum).name} at step {step}")
+
+
+class _Signals:
+    """While open, SIGINT and SIGTERM only note themselves (:attr:`signum`): the run
+    stops at the end of its chunk, where the state is whole and can be saved."""
+
+    def __init__(self):
+        self.signum = None
+        self._old = {}
+
+    def __enter__(self):
+        import signal
+        import threading
+
+        if threading.current_thread() is threading.main_thread():
+            for s in (signal.SIGINT, signal.SIGTERM):
+                if signal.getsignal(s) is not signal.SIG_IGN:
+                    self._old[s] = signal.signal(s, self._note)
+        return self
+
+    def _note(self, signum, frame):
+        if self.signum is None:
+            self.signum = signum
+
+    def __exit__(self, *exc):
+        import signal
+
+        for s, handler in self._old.items():
+            signal.signal(s, handler)
+        self._old = {}
+
+
+class _Run:
+    """The steps of a scene run: chunks, rest checks, checkpoints, signals."""
+
+    def __init__(self, scene, out_file, output, config):
+        from .io.restart import CHECKPOINT
+
+        self.scene, self.output, self.config = scene, output, config
+        self.out_file = out_file
+        self.n_steps = scene["simulation"]["steps"]
+        self.checkpoint = out_file.parent / CHECKPOINT
+        self.rest_speed = scene["simulation"]["rest_speed"]
+        self.saved_at = None
+
+    def save(self, sim):
+        from .io.restart import save_scene_checkpoint
+
+        if self.output.checkpoint_every and self.saved_at != sim.step:
+            save_scene_checkpoint(sim, self.checkpoint, self.scene, config=self.config)
+            self.saved_at = sim.step
+
+    def checkpoint_note(self):
+        """Where a stopped run can continue from, in a few words."""
+        from .io.restart import checkpoint_step
+
+        step = checkpoint_step(self.checkpoint) if self.output.checkpoint_every else None
+        if step is None:
+            return ("no checkpoint (set [output] checkpoint_every to continue a stopped "
+                    "run with --restart)")
+        return f"{self.checkpoint} holds step {step} (continue with --restart)"
+
+    def steps(self, sim, n_steps, progress, writer, signals):
+        """Run the remaining ``n_steps`` (or until rest); the words the summary adds."""
+        from .observers import Periodic
+        from .rest import run_chunked
+
+        every = self.output.checkpoint_every
+        marks = [Periodic(every)] if every else []
+
+        def after(sim):
+            if every and sim.step % every == 0:
+                self.save(sim)
+            if signals.signum is not None:
+                self.save(sim)
+                raise _Stopped(signals.signum, sim.step)
+
+        speed = self.rest_speed
+        _, at_rest = run_chunked(sim, n_steps, speed, progress=progress, marks=marks,
+                                 after=after)
+        if speed is not None and writer is not None and not writer.trigger(sim.step):
+            writer(sim)  # the state at rest is the last frame
+        self.save(sim)
+        if speed is None:
+            return ""
+        return (f", at rest (below {speed:g} m/s)" if at_rest
+                else f", not at rest (still above {speed:g} m/s)")
 
 
 def _close_quietly(writer):
@@ -208,20 +322,25 @@ def _close_quietly(writer):
         log.debug("%s", exc)
 
 
-def _dry_run(args, sim, out_file, n_steps, inserted=0):
+def _dry_run(args, sim, run, n_steps, inserted=0):
     """Check the outputs as the run would (nothing is written) and print the plan."""
     from .cost import run_seconds, time_line
     from .io.plan import check_new_files, work_line
     from .limits import memory_estimate
     from .shapes import Shape
 
-    try:
-        check_new_files([out_file, out_file.with_suffix(".xdmf")], args.overwrite)
-    except OSError as exc:
-        return _error(exc, EXIT_USAGE)
+    out_file = run.out_file
+    if not args.restart:
+        try:
+            check_new_files([out_file, out_file.with_suffix(".xdmf"), run.checkpoint],
+                            args.overwrite)
+        except OSError as exc:
+            return _error(exc, EXIT_USAGE)
     n_particles = sim.bodies.n - len(sim.bodies.ids(Shape.PLANE)) + inserted
-    replaced = " (replaced)" if args.overwrite and out_file.exists() else ""
-    print(f"{args.scene}: valid; {_bodies_line(sim)}; {n_steps} steps of "
+    replaced = (" (continued)" if args.restart and out_file.exists() else
+                " (replaced)" if args.overwrite and out_file.exists() else "")
+    since = f" from the checkpoint at step {sim.step}" if args.restart else ""
+    print(f"{args.scene}: valid; {_bodies_line(sim)}; {n_steps} steps{since} of "
           f"dt = {sim.dt:.4g} s; output {out_file}{replaced}; memory "
           f"{memory_estimate(n_particles)}; {work_line(n_particles, n_steps)}; "
           f"{time_line(run_seconds(n_particles, n_steps, sim.dim, sim.shaped))}")
@@ -237,22 +356,27 @@ def _bodies_line(sim):
             f"({b.dim}D)")
 
 
-def _open_writer(path, output, overwrite, config=None):
+def _open_writer(path, output, overwrite, config=None, resume_step=None):
     """The HDF5 observer writing to ``path``, or None where no writer is available;
     ``config`` (the scene file's text) is stored in the file.
 
     Refuses (FileExistsError) to replace an existing HDF5 or XDMF file (the
-    particles' or a companion, :func:`dem.io.xdmf.xdmf_files`) unless ``overwrite``.
+    particles' or a companion, :func:`dem.io.xdmf.xdmf_files`) or a checkpoint unless
+    ``overwrite``. With ``resume_step`` (a restart) the particle file is continued
+    from that step instead.
     """
-    refuse_existing((path, path.with_suffix(".xdmf")), overwrite)
+    from .io.restart import CHECKPOINT
+
     try:
         from .io.hdf5 import H5Writer
         from .io.xdmf import xdmf_files
     except ImportError as exc:
         log.warning("HDF5 output disabled, the writer is not available: %s", exc)
         return None
-    xdmf = [Path(p) for p in xdmf_files(path.with_suffix(".xdmf")).values()]
-    existing = refuse_existing((path, *xdmf), overwrite)
+    existing = []
+    if resume_step is None:
+        xdmf = [Path(p) for p in xdmf_files(path.with_suffix(".xdmf")).values()]
+        existing = refuse_existing((path, *xdmf, path.parent / CHECKPOINT), overwrite)
     from .io.files import OutputError
 
     try:
@@ -264,4 +388,5 @@ def _open_writer(path, output, overwrite, config=None):
             p.unlink()
         except OSError as err:
             raise OutputError(p, err) from None
-    return H5Writer(path, every=output.every, contacts=output.contacts, config=config)
+    return H5Writer(path, every=output.every, contacts=output.contacts, config=config,
+                    resume_step=resume_step)

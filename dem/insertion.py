@@ -96,6 +96,19 @@ class Inserter:
             self.inserted += len(radius)
             sim.invalidate()
 
+    def state(self):
+        """What a restart needs to insert as the uninterrupted run would: the count
+        inserted, their body indices and the random generator's state (JSON-ready)."""
+        return {"inserted": self.inserted, "ids": self.ids.tolist(),
+                "checked": self._checked, "rng": self.rng.bit_generator.state}
+
+    def restore(self, state):
+        """Take back a :meth:`state`."""
+        self.inserted = int(state["inserted"])
+        self.ids = np.asarray(state["ids"], np.int64)
+        self._checked = bool(state["checked"])
+        self.rng.bit_generator.state = state["rng"]
+
     def _place(self, sim, due):
         """Up to ``due`` non-overlapping positions in the region; (pos, radius)."""
         b = sim.bodies

@@ -86,8 +86,8 @@ import h5py
 import numpy as np
 
 from ..observers import Periodic
-from ..rotation import rotation_matrices
 from ..shapes import Shape
+from .geometry import angle_quaternion, pad3, shape_surfaces, wall_patches
 from .files import H5Output, OutputError, publish, remove_quietly, write_bytes_atomic
 from .meta import COMPRESSION, ONE, label, rules, stamp
 from .xdmf import FORMAT, write_xdmf, xdmf_files
@@ -196,6 +196,18 @@ def figure_path(name, out_dir, docs_dir, argv=None):
     return Path(docs_dir if "--docs" in argv else out_dir) / name
 
 
+def _copy(src, dst):
+    """Copy ``src`` to ``dst`` (its writer's ``.tmp``); an OutputError naming ``src``
+    when the disk refuses."""
+    import shutil
+
+    try:
+        shutil.copyfile(src, dst)
+    except OSError as err:
+        remove_quietly(dst)
+        raise OutputError(src, err) from None
+
+
 def frame_name(index):
     """Group name of frame ``index``: six digits, zero padded.
 
@@ -203,144 +215,6 @@ def frame_name(index):
     '000007'
     """
     return f"{int(index):06d}"
-
-
-def pad3(a):
-    """``(n, d)`` float rows as ``(n, 3)`` float64, trailing components zero.
-
-    >>> pad3(np.array([[1.0, 2.0]]))
-    array([[1., 2., 0.]])
-    """
-    a = np.asarray(a, dtype=np.float64)
-    out = np.zeros((a.shape[0], 3))
-    out[:, :a.shape[1]] = a
-    return out
-
-
-def angle_quaternion(angle):
-    """Angles [rad] about z, shape ``(n,)`` or ``(n, 1)``, as ``(n, 4)`` quaternions
-    ``(w, x, y, z)``: the orientation of 2D bodies in the form glyphs take.
-
-    >>> angle_quaternion(np.array([[np.pi]])).round(12) + 0.0
-    array([[0., 0., 0., 1.]])
-    """
-    half = 0.5 * np.asarray(angle, dtype=np.float64).reshape(-1)
-    q = np.zeros((half.size, 4))
-    q[:, 0], q[:, 3] = np.cos(half), np.sin(half)
-    return q
-
-
-def wall_patches(wall_pos, wall_normal, centre, half):
-    """Planes drawn as finite patches for viewers.
-
-    Each plane (a point ``wall_pos`` and a normal ``wall_normal``, ``(nw, d)`` [m]
-    and [-]) becomes a square of half-width ``half`` [m] (3D; corners counter-clockwise
-    seen from the side the normal points to) or a segment of half-length ``half``
-    (2D), centred on the projection of ``centre`` (d,) [m] onto the plane.
-
-    Returns
-    -------
-    points : (4 nw, 3) or (2 nw, 3) float64 [m]
-    cells : (nw, 4) or (nw, 2) int32, rows of ``points``
-
-    >>> p, c = wall_patches(np.zeros((1, 2)), np.array([[0.0, 1.0]]), np.ones(2), 0.5)
-    >>> p.tolist(), c.tolist()
-    ([[1.5, 0.0, 0.0], [0.5, 0.0, 0.0]], [[0, 1]])
-    """
-    wall_pos = np.asarray(wall_pos, dtype=np.float64)
-    nw, d = wall_pos.shape
-    n = np.asarray(wall_normal, dtype=np.float64)
-    n = n / np.linalg.norm(n, axis=1, keepdims=True)
-    foot = centre - np.einsum("wi,wi->w", centre - wall_pos, n)[:, None] * n
-    if d == 2:
-        t = np.stack([-n[:, 1], n[:, 0]], axis=1)
-        corners = np.stack([foot - half * t, foot + half * t], axis=1)
-    else:
-        axis = np.eye(3)[np.argmin(np.abs(n), axis=1)]  # the axis least along n
-        t1 = np.cross(n, axis)
-        t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
-        t2 = np.cross(n, t1)  # (t1, t2, n) right-handed
-        corners = np.stack([foot + half * (s1 * t1 + s2 * t2) for s1, s2 in
-                            ((-1, -1), (1, -1), (1, 1), (-1, 1))], axis=1)
-    k = corners.shape[1]
-    cells = np.arange(nw * k, dtype=np.int32).reshape(nw, k)
-    return pad3(corners.reshape(nw * k, d)), cells
-
-
-#: shape kinds drawn as surfaces: those whose shape-table row holds vertices
-SURFACE_KINDS = (Shape.BOX, Shape.POLYGON, Shape.POLYHEDRON)
-
-
-def shape_surfaces(bodies):
-    """World-frame triangle surfaces of the boxes, polygons and polyhedra of ``bodies``.
-
-    Vertex ``v`` of body ``b`` (shape row ``s``) sits at
-    ``pos[b] + R(rot[b]) @ (scale[s] * verts[v])``. 3D shapes bring their boundary
-    triangles (``ShapeTable.tris``); a 2D polygon (or rectangle) is fanned from its
-    first vertex. A compound draws each of its polytope parts. Bodies come in ascending
-    index order, each with a contiguous block of points and of triangles. Custom shapes
-    and spheres (no vertices) are left out.
-
-    Parameters
-    ----------
-    bodies : dem.Bodies
-
-    Returns
-    -------
-    dict
-        ``points`` (np, 3) float64 [m], ``cells`` (nt, 3) int32 rows of ``points``,
-        ``body`` (nt,) int32 body indices, ``vel`` (nt, 3) float64 [m/s] the body's
-        velocity (z = 0 in 2D). Empty arrays when there is nothing to draw.
-    """
-    t, d = bodies.table, bodies.dim
-    ids = np.flatnonzero(np.isin(bodies.kind, SURFACE_KINDS) & (bodies.shape >= 0))
-    rows = bodies.shape[ids].astype(np.int64)
-    pos3 = np.zeros((bodies.n, 3))
-    pos3[:, :d] = bodies.pos
-    place = pos3[ids]  # each drawn piece: its origin and rotation in the world
-    turn = rotation_matrices(bodies.rot[ids])
-    comp = np.flatnonzero(bodies.kind == Shape.COMPOUND)
-    if comp.size:  # a compound draws its polytope parts
-        crow = bodies.shape[comp].astype(np.int64)
-        count = t.cstart[crow + 1] - t.cstart[crow]
-        owner = np.repeat(comp, count)
-        pool = np.concatenate([np.arange(t.cstart[s], t.cstart[s + 1]) for s in crow])
-        poly = t.part_row[pool] >= 0
-        owner, pool = owner[poly], pool[poly]
-        body_turn = rotation_matrices(bodies.rot[owner])
-        part_rot = t.part_rot[pool] if d == 3 else t.part_rot[pool, :1]
-        ids = np.concatenate([ids, owner])
-        rows = np.concatenate([rows, t.part_row[pool]])
-        place = np.vstack([place, pos3[owner] + np.einsum("bij,bj->bi", body_turn,
-                                                          t.part_off[pool])])
-        turn = np.concatenate([turn, body_turn @ rotation_matrices(part_rot)])
-        order = np.argsort(ids, kind="stable")
-        ids, rows, place, turn = ids[order], rows[order], place[order], turn[order]
-    n_verts = t.vstart[rows + 1] - t.vstart[rows]
-    n_tris = (t.tstart[rows + 1] - t.tstart[rows]) if d == 3 else n_verts - 2
-    keep = (n_verts >= 3) & (n_tris > 0)
-    ids, rows, n_verts, n_tris = ids[keep], rows[keep], n_verts[keep], n_tris[keep]
-    place, turn = place[keep], turn[keep]
-    p_off = np.concatenate(([0], np.cumsum(n_verts)))
-    c_off = np.concatenate(([0], np.cumsum(n_tris)))
-    points = np.zeros((p_off[-1], 3))
-    cells = np.zeros((c_off[-1], 3), np.int32)
-    for s in np.unique(rows):
-        here = np.flatnonzero(rows == s)  # pieces sharing shape row s
-        local = t.scale[s] * t.verts[t.vstart[s]:t.vstart[s + 1]]
-        world = place[here, None, :] + np.einsum("bij,vj->bvi", turn[here], local)
-        points[p_off[here][:, None] + np.arange(local.shape[0])] = world
-        if d == 3:
-            tris = t.tris[t.tstart[s]:t.tstart[s + 1]]
-        else:
-            k = np.arange(1, local.shape[0] - 1)
-            tris = np.stack([np.zeros_like(k), k, k + 1], axis=1)
-        cells[c_off[here][:, None] + np.arange(tris.shape[0])] = (
-            p_off[here][:, None, None] + tris[None])
-    body = np.repeat(ids, n_tris).astype(np.int32)
-    vel = np.zeros((body.size, 3))
-    vel[:, :d] = bodies.vel[body]
-    return {"points": points, "cells": cells, "body": body, "vel": vel}
 
 
 class H5Writer:
@@ -371,6 +245,10 @@ class H5Writer:
     config : str or dict, optional
         The configuration that made the run (a scene file's text, or settings stored
         as JSON): the file's ``config`` attribute.
+    resume_step : int, optional
+        Continue an existing ``path`` (a run restarted from a checkpoint at this
+        step): its frames up to this step are kept, later ones dropped, and new ones
+        follow. Without the file a new one is started.
 
     Examples
     --------
@@ -386,7 +264,8 @@ class H5Writer:
     2
     """
 
-    def __init__(self, path, every=100, contacts=True, fields=None, config=None):
+    def __init__(self, path, every=100, contacts=True, fields=None, config=None,
+                 resume_step=None):
         fields = dict(fields or {})
         self.fields = {k: v[0] if isinstance(v, tuple) else v for k, v in fields.items()}
         self._field_units = {k: v[1] for k, v in fields.items() if isinstance(v, tuple)}
@@ -405,11 +284,34 @@ class H5Writer:
             os.makedirs(parent, exist_ok=True)
         except OSError as err:
             raise OutputError(self.path, err) from None
-        self._out = H5Output(self.tmp_path, "w", name=self.path)
+        resume = resume_step is not None and os.path.exists(self.path)
+        if resume:
+            _copy(self.path, self.tmp_path)
+        self._out = H5Output(self.tmp_path, "a" if resume else "w", name=self.path)
         self._file = self._out.h5
         with self._guard():
-            stamp(self._file, FORMAT, VERSION, config)
-            self._frames = self._file.create_group("frames")
+            if resume:
+                self._keep_frames(int(resume_step))
+            else:
+                stamp(self._file, FORMAT, VERSION, config)
+                self._frames = self._file.create_group("frames")
+
+    def _keep_frames(self, step):
+        """Drop the frames after ``step`` of a file being continued."""
+        f = self._file
+        if f.attrs.get("format") != FORMAT or "frames" not in f:
+            self._out.abandon()
+            remove_quietly(self.tmp_path)
+            raise ValueError(f"{self.path} is not a particle file of dem.io.H5Writer; "
+                             f"cannot continue it")
+        self._frames = f["frames"]
+        names = sorted(self._frames)
+        keep = [n for n in names if int(self._frames[n].attrs["step"]) <= step]
+        for n in names[len(keep):]:
+            del self._frames[n]
+        self.n_frames = len(keep)
+        if "dim" in f.attrs:
+            self._dim = int(f.attrs["dim"])
 
     def _guard(self):
         """A failed write ends the file: it is closed, its ``.tmp`` removed, and the

@@ -280,6 +280,11 @@ SCHEMA = {
         "every": Key("int", default=1000, range=Range(1.0),
                      doc="Steps between frames."),
         "contacts": Key("bool", default=True, doc="Also write contacts."),
+        "checkpoint_every": Key("int", default=0, range=Range(0.0),
+                                doc="Steps between checkpoints (checkpoint.h5 beside the "
+                                    "particle file, also written at the end and when a "
+                                    "signal stops the run; dem run --restart continues "
+                                    "from it); 0: none."),
     }),
 }
 
@@ -292,6 +297,7 @@ class OutputSettings:
     file: Path
     every: int
     contacts: bool
+    checkpoint_every: int = 0
 
 
 # --------------------------------------------------------------------------- loading
@@ -755,7 +761,7 @@ def build_simulation(scene):
     stem = Path(ctx.source).stem.strip("<>") or "scene"
     out_dir = Path(o["dir"] if o["dir"] is not None else Path("output") / stem)
     output = OutputSettings(dir=out_dir, file=out_dir / f"{stem}.h5", every=o["every"],
-                            contacts=o["contacts"])
+                            contacts=o["contacts"], checkpoint_every=o["checkpoint_every"])
     log.info("scene %s: %d bodies, dt = %.4g s", ctx.source, bodies.n, sim.dt)
     return sim, output
 

@@ -335,7 +335,8 @@ def test_load_scene_fills_defaults(tmp_path):
     scene = load_scene(write_scene(tmp_path, base_scene()))
     assert scene["simulation"]["dim"] == 3 and scene["simulation"]["dt"] is None
     assert scene["walls"][0]["velocity"] == [0.0, 0.0, 0.0]
-    assert scene["output"] == {"dir": None, "every": 20, "contacts": True}
+    assert scene["output"] == {"dir": None, "every": 20, "contacts": True,
+                               "checkpoint_every": 0}
 
 
 def test_2d_random_scene_builds(tmp_path):

@@ -23,7 +23,7 @@ from scipy.integrate import quad
 
 import dem
 from dem.io.checkpoint import read_bodies, write_bodies
-from dem.io.hdf5 import shape_surfaces
+from dem.io.geometry import shape_surfaces
 from dem.observers import angular_momentum, kinetic_energy
 from dem.rotation import quat_to_matrix
 from dem.shapes import Box, Compound, ConvexPolygon, ConvexPolyhedron, Sphere

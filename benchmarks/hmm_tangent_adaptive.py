@@ -321,6 +321,8 @@ def visualize(data):
     ax.set_ylabel("top reaction [kN/m]")
     ax.set_title(f"(a) RVE tangent; curves differ by at most {100 * dev:.1f} % "
                  f"of the peak", fontsize=10)
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo, hi + 0.2 * (hi - lo))  # room above the curves for the legend
     ax.legend(loc="upper left", fontsize=8)
     ins = ax.inset_axes([0.6, 0.14, 0.36, 0.28])
     for k, (name, (_, color, _)) in enumerate(styles.items()):
@@ -328,13 +330,30 @@ def visualize(data):
         ins.bar([i + 1 + 0.4 * (k - 0.5) for i in range(len(its))], its, width=0.4,
                 color=color)
     ins.xaxis.set_major_locator(MaxNLocator(integer=True))
-    ins.set_xlabel("load step", fontsize=7)
-    ins.set_ylabel("Newton it.", fontsize=7)
+    ins.yaxis.set_major_locator(MaxNLocator(nbins=4, integer=True))
+    ins.set_xlabel("load step [-]", fontsize=7)
+    ins.set_ylabel("Newton it. [-]", fontsize=7)
     ins.tick_params(labelsize=7)
-    ada = data["adaptive"]
+    _adaptive_panel(bx, data["adaptive"])
+    fig.tight_layout()
+    return fig
+
+
+def _adaptive_panel(bx, ada):
+    """Panel (b): each criterion's runs as a curve of error against DEM steps saved,
+    one label per distinct point (thresholds that land on the same point share it:
+    strain labels left of the points, ratio labels right of them unless the point is
+    the leftmost), every point inside the axes and the legend below them (with the
+    runs that stopped)."""
+    import math
+
+    import numpy as np
+
     stopped = []
-    for crit, color, label in (("strain", "C2", "strain_threshold (ratio off)"),
-                               ("ratio", "C1", "ratio_threshold (strain off)")):
+    xs = [0.0] + [100 * r["steps_saved"] for r in ada.values() if r["completed"]]
+    for crit, color, label, side in (
+            ("strain", "C2", "strain_threshold (ratio off)", -1),
+            ("ratio", "C1", "ratio_threshold (strain off)", 1)):
         rows = sorted((r for r in ada.values() if r.get("criterion") == crit),
                       key=threshold)
         stopped += [r for r in rows if not r["completed"]]
@@ -345,28 +364,33 @@ def visualize(data):
         y = [100 * r["deviation"]["max_peak"] for r in rows]
         bx.plot(x, y, "o-", color=color, label=f"{label}: largest error")
         bx.plot(x, [100 * r["deviation"]["end_peak"] for r in rows], "o", color=color,
-                mfc="none", label="    the same runs: error at the end")
+                mfc="none", label="the same runs: error at the end")
+        points = {}
         for r, xi, yi in zip(rows, x, y, strict=True):
-            bx.annotate(f"{threshold(r):g}", (xi, yi), fontsize=7, color=color,
-                        textcoords="offset points",
-                        xytext=(-6, 6) if crit == "strain" else (5, -9), ha="center"
-                        if crit == "strain" else "left")
-    if stopped:
-        bx.text(0.03, 0.97, "\n".join(
-            f"{r['criterion']} threshold {threshold(r):g}: Newton failed at load "
-            f"factor {r['stopped_at_load_factor']:.2f} (points switching)"
-            for r in stopped), transform=bx.transAxes, va="top", fontsize=7)
-    bx.set_xlim(-15.0, 110.0)
+            points.setdefault((round(xi, 1), round(yi, 2)), []).append(f"{threshold(r):g}")
+        for (xi, yi), names in points.items():
+            at = -1 if xi <= min(xs) else side
+            bx.annotate(", ".join(names), (xi, yi), fontsize=7, color=color,
+                        textcoords="offset points", xytext=(7 * at, 0), va="center",
+                        ha="left" if at > 0 else "right")
+    for r in stopped:  # named in the legend, which has no point of theirs
+        bx.plot([], [], " ", label=f"{r['criterion']} threshold {threshold(r):g}: Newton "
+                f"failed at load factor {r['stopped_at_load_factor']:.2f} (points switching)")
+    # every point inside: room on both sides for the labels, 0 % error above the floor
+    lo, hi = min(xs), max(max(xs), 100.0)
+    pad = 0.12 * (hi - lo)
+    bx.set_xlim(lo - pad, hi + pad)
     bx.set_yscale("symlog", linthresh=0.1)
-    bx.set_ylim(0.0, 800.0)
-    bx.set_xlabel("DEM steps saved against the all-DEM run [%]")
+    top = max((np.max(line.get_ydata()) for line in bx.lines if len(line.get_ydata())),
+              default=100.0)
+    bx.set_ylim(-0.03, 10 ** (math.log10(max(top, 1.0)) + 0.5))
+    bx.set_xlabel("DEM steps saved against the all-DEM run [%]\n"
+                  "(negative: more DEM steps than the all-DEM run)")
     bx.set_ylabel("top reaction error [% of the peak reaction]")
     bx.set_title("(b) Adaptive: error against DEM work saved (labels: thresholds)",
                  fontsize=10)
     bx.grid(alpha=0.3)
-    bx.legend(fontsize=7, loc="lower right")
-    fig.tight_layout()
-    return fig
+    bx.legend(fontsize=7, loc="upper center", bbox_to_anchor=(0.5, -0.24), ncol=2)
 
 
 def threshold(r):

@@ -39,6 +39,7 @@ usage::
 
     python benchmarks/stability_map.py           # full sweep (a few minutes on one core)
     python benchmarks/stability_map.py --quick   # coarse grids (for a smoke run)
+    python benchmarks/stability_map.py --figure  # redraw the chart from the JSON
 
 writes ``benchmarks/results/stability_map.json`` and ``docs/figures/stability_map.png``.
 """
@@ -65,6 +66,8 @@ import dem
 from dem.observers import elastic_energy, kinetic_energy
 
 OUT = REPO / "benchmarks" / "results" / "stability_map.json"
+#: the results' sections, one a panel of the chart
+PANELS = ("spheres", "polyhedra", "peridynamics", "rve", "newton", "admm")
 PNG = REPO / "docs" / "figures" / "stability_map.png"
 
 FULL_GRID = [0.02, 0.05, 0.1, 0.2, 0.3, 0.4, 0.44, 0.5, 0.55, 0.6, 0.625, 0.65, 0.675, 0.7,
@@ -586,7 +589,9 @@ def admm_corner(quick):
 
 # --------------------------------------------------------------------------- chart
 def visualize(res):
+    """The six panels of :func:`main`'s results ``res`` (the JSON's content)."""
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
 
     fig, axes = plt.subplots(2, 3, figsize=(15, 8.5))
     ax = axes[0, 0]
@@ -594,77 +599,101 @@ def visualize(res):
         _energy_curve(ax, d["rows"], f"{kind} ({d['dim']}D, {d['n']})")
         ax.axvline(d["verlet_limit"], ls=":", color=ax.lines[-1].get_color(), lw=1)
         ax.axvline(d["refused_from"], ls="--", color=ax.lines[-1].get_color(), lw=0.8)
-    _energy_axes(ax, "a. DEM spheres (dotted: lattice's 2/omega_max; dashed: refused from)")
+    _energy_axes(ax, "a. DEM spheres", extra=[
+        Line2D([], [], ls=":", color="0.3", lw=1, label="lattice's Verlet limit 2/omega_max"),
+        Line2D([], [], ls="--", color="0.3", lw=0.8, label="the engine refuses from")])
     ax = axes[0, 1]
     _energy_curve(ax, res["polyhedra"]["rows"], "polyhedra, edge on edge")
     _energy_axes(ax, "b. DEM polyhedra", res["polyhedra"].get("refused_from"))
     ax = axes[0, 2]
     _energy_curve(ax, res["peridynamics"]["rows"], "LPS plate (60 points)")
     _energy_axes(ax, "c. Peridynamics", 1.0)
+    _rve_axes(axes[1, 0], res["rve"])
+    _newton_axes(axes[1, 1], res["newton"])
+    _admm_axes(axes[1, 2], res["admm"])
+    fig.tight_layout()
+    return fig
 
-    ax = axes[1, 0]
-    rv = res["rve"]
+
+def _failed(ax, points, label, **style):
+    """Failed runs as black crosses (``label`` names the error, for the legend)."""
+    if points:
+        ax.plot(*zip(*points, strict=True), "x", **({"color": "k", "ms": 10, "mew": 2}
+                                                     | style), label=label)
+
+
+def _rve_axes(ax, rv):
+    """Panel d: relaxation steps against the strain increment, per damping; the
+    legend above the cap, where nothing is drawn."""
+    bad = []
     for c in sorted({r["damping"] for r in rv["rows"]}):
         rows = [r for r in rv["rows"] if r["damping"] == c]
         x = [r["strain"] for r in rows]
         y = [r["relax_steps"] if r["relax_steps"] is not None else rv["max_relax_steps"]
              for r in rows]
-        ax.loglog(x, y, "o-", label=f"damping {c:g}")
-        bad = [(xi, yi) for xi, yi, r in zip(x, y, rows, strict=True) if r["error"]]
-        if bad:
-            ax.plot(*zip(*bad, strict=True), "x", color="k", ms=10, mew=2)
-    ax.axhline(rv["max_relax_steps"], color="k", lw=1, ls="--")
-    ax.set_xlabel("axial strain increment per call")
-    ax.set_ylabel("relaxation steps")
+        ax.loglog(x, y, "o-", label=f"{c:g}")
+        bad += [(xi, yi) for xi, yi, r in zip(x, y, rows, strict=True) if r["error"]]
+    _failed(ax, bad, None)
+    cap = rv["max_relax_steps"]
+    ax.axhline(cap, color="k", lw=1, ls="--")
+    ax.set_ylim(top=cap * 100.0)
+    ax.set_xlabel("axial strain increment per call [-]")
+    ax.set_ylabel("relaxation steps [-]")
     ax.set_title("d. RVE relaxation (x: RelaxationError at the cap)")
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=7, ncol=4, loc="upper center", title="Cundall damping [-]",
+              title_fontsize=7)
 
-    ax = axes[1, 1]
-    nw = res["newton"]
+
+def _newton_axes(ax, nw):
+    """Panel e: Newton iterations of the whole load against the load step."""
+    bad = []
     for key in sorted({(r["control"], r["level"] or 0.0) for r in nw["rows"]}):
         rows = [r for r in nw["rows"] if (r["control"], r["level"] or 0.0) == key]
         x = [1.0 / r["n_steps"] for r in rows]
         label = "displacement control" if key[0] == "displacement" else \
             f"pressure {key[1]:g} q_lim"
-        _line, = ax.loglog(x, [max(r["iterations"], 1) for r in rows], "o-", label=label)
-        bad = [(xi, max(r["iterations"], 1)) for xi, r in zip(x, rows, strict=True)
-               if r["error"]]
-        if bad:
-            ax.plot(*zip(*bad, strict=True), "x", color="k", ms=10, mew=2)
-    ax.set_xlabel("load step (fraction of the load)")
-    ax.set_ylabel("Newton iterations, whole load")
-    ax.set_title("e. Macro Newton (x: SolverError at min_step)")
-    ax.legend(fontsize=7)
+        ax.loglog(x, [max(r["iterations"], 1) for r in rows], "o-", label=label)
+        bad += [(xi, max(r["iterations"], 1)) for xi, r in zip(x, rows, strict=True)
+                if r["error"]]
+    _failed(ax, bad, "SolverError at min_step")
+    top = max(np.max(line.get_ydata()) for line in ax.lines)
+    ax.set_ylim(top=top * 30.0)
+    ax.set_xlabel("load step (fraction of the load) [-]")
+    ax.set_ylabel("Newton iterations, whole load [-]")
+    ax.set_title("e. Macro Newton")
+    ax.legend(fontsize=7, ncol=2, loc="upper center")
 
-    ax = axes[1, 2]
-    ad = res["admm"]
+
+def _admm_axes(ax, ad):
+    """Panel f: ADMM iterations against the parameter of each family of poses."""
     ax.semilogx([max(r["tilt"], 1e-9) for r in ad["parallel"]],
                 [r["iterations"] for r in ad["parallel"]], "o-",
                 label="tilt [rad] of nearly parallel faces (0 at 1e-9)")
     ax.semilogx([r["depth"] for r in ad["deep"]], [r["iterations"] for r in ad["deep"]],
-                "s-", label="penetration depth / half width")
+                "s-", label="penetration depth / half width [-]")
     ax.semilogx([r["thickness"] for r in ad["thin"]],
                 [r["iterations"] for r in ad["thin"]], "^-",
-                label="plate thickness / half width")
+                label="plate thickness / half width [-]")
     corner = [r for r in ad.get("corner", []) if r["side"] == 1.0]
+    cap = 300
     if corner:  # failures drawn at the cap
         ok = [r for r in corner if not r["tol_1e-08"]["error"]]
         ax.semilogx([r["tol_1e-08"]["depth"] for r in ok],
                     [r["tol_1e-08"]["iterations"] for r in ok], "D-",
-                    label="cube thrown into an L's corner (non-convex), depth / half width")
+                    label="cube into an L's corner (non-convex): depth / half width [-],"
+                    "\nmost iterations of a run")
         bad = [r["tol_1e-06"]["depth"] for r in corner if r["tol_1e-08"]["error"]]
-        if bad:
-            ax.plot(bad, [300] * len(bad), "x", color="k", ms=10, mew=2)
+        _failed(ax, [(b, cap) for b in bad], "no convergence (drawn at 300)")
     fb = ad["fallback"]
     ax.axhline(fb["cold_iterations"], color="k", lw=1, ls=":",
                label="cold solve of the fallback pose")
     ax.set_yscale("log")
-    ax.set_xlabel("parameter")
-    ax.set_ylabel("ADMM iterations to 1e-8 (most of a run for the corner)")
-    ax.set_title("f. ADMM detection, boxes (x: no convergence)")
-    ax.legend(fontsize=7)
-    fig.tight_layout()
-    return fig
+    top = max(np.max(line.get_ydata()) for line in ax.lines)
+    ax.set_ylim(top=top * 300.0)
+    ax.set_xlabel("parameter of the poses (see the legend) [rad] or [-]")
+    ax.set_ylabel("ADMM iterations to 1e-8 [-]")
+    ax.set_title("f. ADMM detection, boxes")
+    ax.legend(fontsize=7, loc="upper center")
 
 
 def _energy_curve(ax, rows, label):
@@ -674,20 +703,31 @@ def _energy_curve(ax, rows, label):
     line, = ax.loglog(x, [max(v, 1e-12) for v in y], "o-", label=label, ms=4)
     bad = [(xi, max(yi, 1e-12)) for xi, yi, r in zip(x, y, rows, strict=True)
            if r["error"]]
-    if bad:
-        ax.plot(*zip(*bad, strict=True), "x", color=line.get_color(), ms=9, mew=2)
+    _failed(ax, bad, None, color=line.get_color(), ms=9)
 
 
-def _energy_axes(ax, title, refused=None):
+def _energy_axes(ax, title, refused=None, extra=()):
+    """Axes of panels a-c: the failure line, the refusal line, the legend (with a
+    cross for a SimulationError) above the curves."""
+    from matplotlib.lines import Line2D
+
     ax.axhline(FAIL, color="k", lw=1, ls="--")
+    handles = [line for line in ax.lines if not line.get_label().startswith("_")]
+    handles += [Line2D([], [], ls="--", color="k", lw=1, label="failure: error 1"),
+                Line2D([], [], ls="", marker="x", color="0.3", mew=2,
+                       label="SimulationError")]
     if refused is not None:
         ax.axvline(refused, color="r", lw=1)
-        ax.set_xlabel("dt / dt_crit (red: refused above without allow_unstable_dt)")
-    else:
-        ax.set_xlabel("dt / dt_crit")
-    ax.set_ylabel("max |E - E0| / K0 (x: SimulationError)")
+        handles.append(Line2D([], [], color="r", lw=1,
+                              label="refused above (without allow_unstable_dt)"))
+    ax.set_xlabel("dt / dt_crit [-]")
+    ax.set_ylabel("energy error max |E - E0| / K0 [-]")
     ax.set_title(title)
-    ax.legend(fontsize=7)
+    bottom, top = ax.get_ylim()
+    ax.set_ylim(bottom, top * 1e4)  # room for the legend above the curves
+    handles += extra
+    ax.legend(handles=handles, fontsize=7, ncol=2 if len(handles) > 4 else 1,
+              loc="upper left")
 
 
 # --------------------------------------------------------------------------- main
@@ -700,7 +740,25 @@ def main(argv=None):
     p.add_argument("--quick", action="store_true", help="coarse grids, smaller sweeps")
     p.add_argument("--only", nargs="*", default=None,
                    help="panels to run (spheres polyhedra peridynamics rve newton admm)")
+    p.add_argument("--figure", action="store_true",
+                   help="redraw the chart from the results' JSON (runs nothing)")
     args = p.parse_args(argv)
+    if args.figure:
+        name = OUT.relative_to(REPO) if OUT.is_relative_to(REPO) else OUT
+        try:
+            res = json.loads(OUT.read_text())
+        except FileNotFoundError:
+            p.exit(2, f"error: {name}: not found (run the sweep first)\n")
+        except (OSError, ValueError) as err:
+            p.exit(2, f"error: {name}: cannot read the results ({err})\n")
+        missing = [k for k in PANELS if k not in res]
+        if missing:
+            p.exit(2, f"error: {name}: no results for the panels {', '.join(missing)} "
+                   f"(run them with --only)\n")
+        PNG.parent.mkdir(parents=True, exist_ok=True)
+        visualize(res).savefig(PNG, dpi=110)
+        log(f"wrote {PNG}")
+        return
     # past the limit load the tangent is singular: expected, the solver reports it
     warnings.filterwarnings("ignore", message="Matrix is exactly singular")
     grid = QUICK_GRID if args.quick else FULL_GRID
@@ -722,7 +780,7 @@ def main(argv=None):
         log(f"{name}: {time.perf_counter() - t0:.1f} s")
     OUT.parent.mkdir(parents=True, exist_ok=True)
     OUT.write_text(json.dumps(res, indent=1))
-    if all(k in res for k in panels):
+    if all(k in res for k in PANELS):
         PNG.parent.mkdir(parents=True, exist_ok=True)
         visualize(res).savefig(PNG, dpi=110)
         log(f"wrote {OUT} and {PNG}")

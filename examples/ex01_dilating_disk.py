@@ -160,7 +160,7 @@ def visualize():
     bx.plot(times, radial_history.mean(axis=1), "-", color="crimson",
             label="first ring, radial displacement")
     bx.set_xlabel("t [s]")
-    bx.set_ylabel("[m]")
+    bx.set_ylabel("growth, displacement [m]")
     bx.set_title("centre disk growth and first-ring motion")
     bx.legend(frameon=False)
     fig.tight_layout()

@@ -113,24 +113,33 @@ def _draw(ax, bodies, colour):
 
 def visualize():
     """The polygons at the start (grey) and end (blue), and the energy budget."""
+    return figure(start, sim.bodies, rec)
+
+
+def figure(start, end, rec):
+    """:func:`visualize` of the bodies ``start`` and ``end`` and the records ``rec``
+    of :func:`run`."""
     import matplotlib.pyplot as plt
 
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.5),
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(11, 4.5), layout="constrained",
                                   gridspec_kw={"width_ratios": [1.1, 1]})
     _draw(ax, start, "0.6")
-    _draw(ax, sim.bodies, "C0")
+    _draw(ax, end, "C0")
     ax.set_aspect("equal")
     ax.autoscale_view()
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.set_title("polygons: start (grey) and end (blue)")
+    total = rec["kinetic"] + rec["elastic"]
     ax2.plot(rec["t"], rec["kinetic"], label="kinetic")
     ax2.plot(rec["t"], rec["elastic"], label="elastic (contacts)")
-    ax2.plot(rec["t"], rec["kinetic"] + rec["elastic"], "k--", label="total")
+    ax2.plot(rec["t"], total, "k--", label="total")
     ax2.set_xlabel("time [s]")
     ax2.set_ylabel("energy [J]")
-    ax2.legend()
-    fig.tight_layout()
+    ax2.set_title("energy budget")
+    top = float(np.max(total))
+    ax2.set_ylim(-0.03 * top, 1.45 * top)  # room above the curves for the legend
+    ax2.legend(loc="upper center", ncol=3, fontsize=9)
     return fig
 
 

@@ -146,26 +146,62 @@ def _min_gap(a, b):
     return float(cKDTree(b).query(a, k=1)[0].min())
 
 
-def plot(frames, dx, path):
-    import matplotlib.pyplot as plt
+#: damage [-]: intact points light grey, broken ones dark red
+DAMAGE_COLOURS = ("0.85", "#fdae61", "#d7301f", "#67000d")
 
+
+def figure(frames, dx):
+    """Damage (top row) and force density (bottom row) at each frame
+    ``(title, pos [m], damage [-], force density [N/m^3])``; every panel at the same
+    scale, one colour bar per row. Returns the figure."""
+    import matplotlib.pyplot as plt
+    from matplotlib.colors import LinearSegmentedColormap, LogNorm
+
+    pos = np.concatenate([f[1] for f in frames])
+    lo, hi = pos.min(axis=0) - dx, pos.max(axis=0) + dx
     fig, axes = plt.subplots(2, len(frames), figsize=(3.2 * len(frames), 6.4),
-                             squeeze=False)
-    for k, (label, pos, damage, fdens) in enumerate(frames):
+                             sharex=True, sharey=True, squeeze=False, layout="compressed")
+    damage_map = LinearSegmentedColormap.from_list("damage", DAMAGE_COLOURS)
+    fmax = max(float(f[3].max()) for f in frames)
+    fnorm = LogNorm(vmin=1e-4 * fmax, vmax=fmax) if fmax > 0 else LogNorm(1.0, 10.0)
+    rows = []
+    for k, (label, p, damage, fdens) in enumerate(frames):
         top, bottom = axes[0, k], axes[1, k]
-        s = (72.0 * 2.6 * dx) ** 2  # a lattice cell, in points^2
-        top.scatter(pos[:, 0], pos[:, 1], c=damage, s=s, cmap="inferno_r", vmin=0, vmax=1,
-                    marker="s", linewidths=0)
-        bottom.scatter(pos[:, 0], pos[:, 1], c=np.log10(fdens + 1.0), s=s, cmap="viridis",
-                       marker="s", linewidths=0)
+        rows.append((
+            top.scatter(p[:, 0], p[:, 1], c=damage, cmap=damage_map, vmin=0.0, vmax=1.0,
+                        marker="s", linewidths=0),
+            bottom.scatter(p[:, 0], p[:, 1], c=np.maximum(fdens, fnorm.vmin), norm=fnorm,
+                           cmap="viridis", marker="s", linewidths=0)))
         top.set_title(label, fontsize=9)
         for ax in (top, bottom):
-            ax.set_aspect("equal")
-            ax.set_xticks([])
-            ax.set_yticks([])
-    axes[0, 0].set_ylabel("damage (0 to 1)")
-    axes[1, 0].set_ylabel("log10 force density [N/m^3]")
-    fig.tight_layout()
+            ax.set(xlim=(lo[0], hi[0]), ylim=(lo[1], hi[1]), aspect="equal")
+            ax.grid(False)
+        bottom.set_xlabel("x [m]")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("y [m]")
+    fig.colorbar(rows[0][0], ax=axes[0, :], label="damage [-]", shrink=0.9)
+    fig.colorbar(rows[0][1], ax=axes[1, :], label="force density [N/m^3]", shrink=0.9,
+                 extend="min")
+    _cell_markers(fig, axes, [c for row in rows for c in row], dx)
+    return fig
+
+
+def _cell_markers(fig, axes, scatters, dx):
+    """Square markers one lattice cell wide (a little more, so that no seams show)
+    at the size the laid-out panels draw a metre."""
+    fig.draw_without_rendering()  # lays the panels out
+    ax = axes[0, 0]
+    box = ax.get_window_extent()
+    points_per_m = box.width / fig.dpi * 72.0 / np.diff(ax.get_xlim())[0]
+    for c in scatters:
+        c.set_sizes([(1.15 * dx * points_per_m) ** 2])
+
+
+def plot(frames, dx, path):
+    """Write :func:`figure` as a PNG to ``path``."""
+    import matplotlib.pyplot as plt
+
+    fig = figure(frames, dx)
     save_figure(fig, path)
     plt.close(fig)
 

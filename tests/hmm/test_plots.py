@@ -2,10 +2,10 @@
 labelled axes with units, labelled colour bars, the driven force in the driven
 direction, tick labels that do not run together."""
 
-import itertools
-
 import numpy as np
 import pytest
+from figure_checks import (assert_colour_bars_labelled, assert_texts_inside,
+                           assert_ticks_apart, colour_bars, panels, render)
 
 from hmm.plots import fields_figure, length_unit, load_displacement_figure, scaled_unit
 
@@ -23,23 +23,10 @@ def _curve(steps=9, push=-8e-4, force=1.4e4):
             "force/bottom": -f_top}
 
 
-def _render(fig):
-    """Lay the figure out as a PNG would be; its renderer."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-
-    canvas = FigureCanvasAgg(fig)
-    canvas.draw()
-    return canvas.get_renderer()
-
-
 def _no_overlap(fig, ax):
-    renderer = _render(fig)
-    for axis in (ax.xaxis, ax.yaxis):
-        boxes = [t.get_window_extent(renderer) for t in axis.get_ticklabels()
-                 if t.get_visible() and t.get_text()]
-        assert len(boxes) >= 3
-        for a, b in itertools.pairwise(boxes):
-            assert not a.overlaps(b), [t.get_text() for t in axis.get_ticklabels()]
+    renderer = render(fig)
+    assert_ticks_apart(ax, renderer, minimum=3)
+    assert_texts_inside(fig, renderer)
 
 
 def test_the_load_displacement_figure_shows_the_driven_force_in_mm_and_kn():
@@ -79,17 +66,18 @@ def test_the_field_figure_labels_axes_and_colour_bars():
                          (np.array([0.19, 0.2, 0.21, 0.25]), "void ratio [-]", "magma",
                           (None, None))],
                         "last step")
-    _render(fig)
-    panels = [ax for ax in fig.axes if ax.get_label() != "<colorbar>"]
-    bars = [ax for ax in fig.axes if ax.get_label() == "<colorbar>"]
-    assert len(panels) == 2 and len(bars) == 2
-    for ax in panels:
+    renderer = render(fig)
+    bars = colour_bars(fig)
+    assert len(panels(fig)) == 2 and len(bars) == 2
+    assert_colour_bars_labelled(fig)
+    assert_texts_inside(fig, renderer)
+    for ax in panels(fig):
         assert (ax.get_xlabel(), ax.get_ylabel()) == ("x [mm]", "y [mm]")
         assert ax.get_xlim()[1] == pytest.approx(40.0, rel=0.1)
     assert [b.get_ylabel() for b in bars] == ["deviatoric strain [-]", "void ratio [-]"]
     # a uniform field: limits around its value, no offset text such as "1e-16+1.13e-2"
     assert bars[0].yaxis.get_offset_text().get_text() == ""
-    lo, hi = panels[0].collections[0].get_clim()
+    lo, hi = panels(fig)[0].collections[0].get_clim()
     assert lo < 0.0113 < hi
     assert fig._suptitle.get_text() == "last step"
 

@@ -123,7 +123,8 @@ def damping_ratio(restitution):
 
 
 def linear_law(ov, n, v_rel, m_eff, law, spring=None):
-    """Force on ``j`` (c, 3) of linear spring-dashpot contacts with a Coulomb cap.
+    """Force on ``j`` (c, 3) of linear spring-dashpot contacts with a Coulomb cap
+    ``mu max(fn, 0)``.
 
     ``ov`` (c,) overlaps [m], ``n`` (c, 3) unit normals i -> j, ``v_rel`` (c, 3)
     velocity of j relative to i at the contact point [m/s], ``m_eff`` (c,) [kg];
@@ -144,7 +145,7 @@ def linear_law(ov, n, v_rel, m_eff, law, spring=None):
     fn = kn * ov - (gn + 2.0 * zeta * np.sqrt(kn * m_eff)) * vn
     ft = -kt[:, None] * s - gt[:, None] * vt
     ft_norm = np.linalg.norm(ft, axis=1)
-    cap = mu * np.abs(fn)
+    cap = mu * np.maximum(fn, 0.0)  # a contact the dashpot pulls takes no friction
     sliding = ft_norm > cap
     scale = np.where(sliding, cap / np.where(ft_norm > 0.0, ft_norm, 1.0), 1.0)
     return fn[:, None] * n + scale[:, None] * ft, sliding

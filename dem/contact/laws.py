@@ -28,6 +28,37 @@ from .._jit import kernel
 N_HIST = 3  # tangential spring vector
 
 
+# --------------------------------------------------------------------------- tangential
+@kernel(inline=True)
+def tangential(hist, k, nx, ny, nz, tvx, tvy, tvz, kt, ct, cap, dt):
+    """Tangential force of a spring ``kt`` [N/m] and a dashpot ``ct`` [N s/m] in
+    parallel, in series with a Coulomb slider of limit ``cap`` [N]; updates the
+    spring ``hist[k]`` [m] (rotated into the current tangent plane first).
+
+    Sticking, the pair stretches with the tangential velocity ``tv`` [m/s]:
+    ``f = -kt s - ct tv``. Sliding (the trial force above ``cap``), the pair carries
+    exactly the capped force, and its own stretch rate is what the dashpot then
+    needs: ``kt s_new + ct (s_new - s_old) / dt = -f``, so the spring moves from its
+    old length towards ``cap / kt`` along the force, never against it. With no
+    dashpot that is the usual reset ``s = -f / kt``.
+    """
+    sn = hist[k, 0] * nx + hist[k, 1] * ny + hist[k, 2] * nz
+    rx, ry, rz = hist[k, 0] - sn * nx, hist[k, 1] - sn * ny, hist[k, 2] - sn * nz
+    sx, sy, sz = rx + tvx * dt, ry + tvy * dt, rz + tvz * dt
+    ftx, fty, ftz = -kt * sx - ct * tvx, -kt * sy - ct * tvy, -kt * sz - ct * tvz
+    ft2 = ftx * ftx + fty * fty + ftz * ftz
+    if ft2 > cap * cap:  # sliding
+        scale = cap / math.sqrt(ft2)
+        ftx, fty, ftz = ftx * scale, fty * scale, ftz * scale
+        w = ct / dt
+        if kt + w > 0.0:
+            sx = (w * rx - ftx) / (kt + w)
+            sy = (w * ry - fty) / (kt + w)
+            sz = (w * rz - ftz) / (kt + w)
+    hist[k, 0], hist[k, 1], hist[k, 2] = sx, sy, sz
+    return ftx, fty, ftz
+
+
 # --------------------------------------------------------------------------- linear
 @kernel(inline=True)
 def law_linear(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt):
@@ -37,7 +68,10 @@ def law_linear(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt):
     for materials ``a``, ``b``.
     The normal dashpot is ``gamma_n + 2 zeta sqrt(kn m_eff)``: a fixed coefficient
     (paper eq 19) plus a damping ratio (restitution-based, as in LAMMPS/LIGGGHTS).
-    The paper's elastic law (eqs 16-18) is this law with both dashpots zero.
+    The paper's elastic law (eqs 16-18) is this law with both dashpots zero. The
+    tangential spring ``kt`` and dashpot ``gamma_t`` act in parallel, in series with
+    a Coulomb slider of limit ``mu max(fn, 0)`` (:func:`tangential`): a contact the
+    normal dashpot pulls together carries no friction.
     """
     kn, kt, gn, gt = p[a, b, 0], p[a, b, 1], p[a, b, 2], p[a, b, 3]
     zeta, mu = p[a, b, 4], p[a, b, 5]
@@ -46,19 +80,8 @@ def law_linear(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt):
     fn = kn * ov - cn * vn  # approaching (vn < 0) adds repulsion
     tvx, tvy, tvz = vx - vn * nx, vy - vn * ny, vz - vn * nz
     # tangential spring: rotate into the current tangent plane, then grow
-    sn = hist[k, 0] * nx + hist[k, 1] * ny + hist[k, 2] * nz
-    sx = hist[k, 0] - sn * nx + tvx * dt
-    sy = hist[k, 1] - sn * ny + tvy * dt
-    sz = hist[k, 2] - sn * nz + tvz * dt
-    ftx, fty, ftz = -kt * sx - gt * tvx, -kt * sy - gt * tvy, -kt * sz - gt * tvz
-    ft2 = ftx * ftx + fty * fty + ftz * ftz
-    cap = mu * abs(fn)
-    if ft2 > cap * cap:  # sliding: cap the force, shorten the spring to match
-        scale = cap / math.sqrt(ft2)
-        ftx, fty, ftz = ftx * scale, fty * scale, ftz * scale
-        if kt > 0.0:
-            sx, sy, sz = -(ftx + gt * tvx) / kt, -(fty + gt * tvy) / kt, -(ftz + gt * tvz) / kt
-    hist[k, 0], hist[k, 1], hist[k, 2] = sx, sy, sz
+    ftx, fty, ftz = tangential(hist, k, nx, ny, nz, tvx, tvy, tvz, kt, gt, mu * max(fn, 0.0),
+                               dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz
 
 
@@ -81,8 +104,10 @@ def law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k
     ``p[a, b] = (E* [Pa], G* [Pa], beta [-], mu [-])`` with ``beta = ln e / sqrt(ln^2 e + pi^2)``
     (negative). With ``a = sqrt(r_eff ov)``: ``Sn = 2 E* a``, ``St = 8 G* a``,
     ``fn = 4/3 E* a ov - 2 sqrt(5/6) beta sqrt(Sn m_eff) vn`` and the tangential spring
-    force ``-St s - 2 sqrt(5/6) beta sqrt(St m_eff) vt``, capped by Coulomb (the forms
-    used by LIGGGHTS' hertz model and YADE's Hertz-Mindlin law).
+    force ``-St s - 2 sqrt(5/6) beta sqrt(St m_eff) vt``, capped by Coulomb at
+    ``mu max(fn, 0)`` (the forms used by LIGGGHTS' hertz model and YADE's
+    Hertz-Mindlin law; spring and dashpot in series with the slider:
+    :func:`tangential`).
     """
     es, gs, beta, mu = p[a, b, 0], p[a, b, 1], p[a, b, 2], p[a, b, 3]
     rad = math.sqrt(r_eff * ov)
@@ -94,21 +119,8 @@ def law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k
     vn = vx * nx + vy * ny + vz * nz
     fn = 4.0 / 3.0 * es * rad * ov - cn * vn
     tvx, tvy, tvz = vx - vn * nx, vy - vn * ny, vz - vn * nz
-    sn = hist[k, 0] * nx + hist[k, 1] * ny + hist[k, 2] * nz
-    sx = hist[k, 0] - sn * nx + tvx * dt
-    sy = hist[k, 1] - sn * ny + tvy * dt
-    sz = hist[k, 2] - sn * nz + tvz * dt
-    ftx, fty, ftz = -st_k * sx - ct * tvx, -st_k * sy - ct * tvy, -st_k * sz - ct * tvz
-    ft2 = ftx * ftx + fty * fty + ftz * ftz
-    cap = mu * abs(fn)
-    if ft2 > cap * cap:
-        scale = cap / math.sqrt(ft2)
-        ftx, fty, ftz = ftx * scale, fty * scale, ftz * scale
-        if st_k > 0.0:
-            sx = -(ftx + ct * tvx) / st_k
-            sy = -(fty + ct * tvy) / st_k
-            sz = -(ftz + ct * tvz) / st_k
-    hist[k, 0], hist[k, 1], hist[k, 2] = sx, sy, sz
+    ftx, fty, ftz = tangential(hist, k, nx, ny, nz, tvx, tvy, tvz, st_k, ct,
+                               mu * max(fn, 0.0), dt)
     return fn * nx + ftx, fn * ny + fty, fn * nz + ftz
 
 

@@ -216,7 +216,7 @@ def test_polygon_pile_comes_to_rest():
     b.add_plane([side * 2.2 * r, 0.0], [-1.0, 0.0])
     law = dem.LinearSpring(kn=1e5, kt=5e4, mu=0.5, restitution=0.3)
     sim = dem.Simulation(b, law, gravity=[0.0, -9.81], damping=0.5, threads=1)
-    sim.run(30000)
+    sim.run(33000)  # max |v| falls about 7x every 3000 steps from step 12000 on
     assert len(sim.contacts()["i"]) > 35
     assert np.abs(b.vel).max() < 1e-8
     assert np.abs(b.ang_vel).max() < 1e-6

@@ -491,7 +491,7 @@ def validate_problem(data, source="<problem>", base_dir="."):
         ctx.fail(str(exc), "[load]")
     _check_fluid(ctx, out, data)
     if out["micro"]["model"] in ("dem", "adaptive"):
-        from .experiment import check_shape
+        from .experiment_config import check_shape
         from .micro import PERTURBATION_NEEDS_RELAX
 
         check_shape(ctx, out["micro"], m["dim"], "[micro]")
@@ -851,7 +851,7 @@ def _packing(problem, k, dim, progress, spot=None):
         if spot is not None and spot["mu"] is not None:
             rve.set_friction(spot["mu"])
         return rve
-    from .experiment import shape_maker
+    from .experiment_config import shape_maker
 
     law = LinearSpring(kn=mc["kn"], kt=mc["kt"], mu=mc["mu"])
     return rvemod.generate(dim, mc["count"], mc["radius"], law, mc["p0"],

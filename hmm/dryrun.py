@@ -32,7 +32,7 @@ def plan_run(problem, directory, overwrite=False, restart=False, stop_after=None
     Raises SceneError, FileExistsError, FileNotFoundError, ValueError or OSError
     (one line each), as the real run does for the same input.
     """
-    from .problem import build_loads, build_macro, build_porous
+    from .problem_build import build_loads, build_macro, build_porous
 
     directory = Path(directory)
     macro = build_macro(problem)
@@ -76,7 +76,7 @@ def _check_restart(problem, directory, macro, supports, porous, schedule, stop_a
     the micro states of analytic models); nothing is changed."""
     from .checkpoint import Checkpoint
     from .io import Output
-    from .problem import build_farm
+    from .problem_build import build_farm
     from .run import _check_stop, _refuse_directories
 
     _refuse_directories(directory)
@@ -104,7 +104,7 @@ def _check_packings(problem, macro):
     """Read the packing files the run reads (``[micro] packing``, and the packing of
     every ``[[imperfection]]`` that holds a Gauss point), with the run's checks;
     return the particles of one RVE (None for analytic models)."""
-    from .problem import _packing, spot_of
+    from .problem_build import _packing, spot_of
 
     mc = problem["micro"]
     if mc["model"] not in ("dem", "adaptive"):

@@ -52,9 +52,10 @@ from ..status import NOCONVERGE, NONFINITE, OK, OVERLAP, REBUILD
 from .detection.admm import admm_contact, make_admm
 from .detection.analytic import sphere_box, sphere_polytope
 from .detection.polytope import polytope_contact, polytope_plane
-from .loops import (_apply_law, _cell_map, _cell_start, _deform_cell, _drift_centre,
-                    _strain_norm, add_strain_rate, body_force, cell_spin, moved2,
-                    turn_orientation, turn_spring)
+from .kinematics import (_cell_map, _cell_start, _deform_cell, _drift_centre, _strain_norm,
+                         add_strain_rate, body_force, cell_spin, moved2, turn_orientation,
+                         turn_spring)
+from .laws import apply_law
 
 #: detection methods
 M_SPHERES, M_SPHERE_BOX, M_SPHERE_POLY, M_POLY, M_ADMM = 0, 1, 2, 3, 4
@@ -153,7 +154,7 @@ def _drift_rigid(b, dim, deform, lgrad, dt, half, pos, vel, rot, ang_vel, force,
                  inv_mass, inv_inertia, is_fixed, turns, spin, quat):
     """Half kick and drift of body b, carried by the cell's affine field ``dt L x``
     when ``deform``, its orientation turned with the cell's spin when ``turns``
-    (:func:`dem.contact.loops.cell_spin`: angular velocities are fluctuations about
+    (:func:`dem.contact.kinematics.cell_spin`: angular velocities are fluctuations about
     it); zeroes its force and torque (the caller checks the displacement against the
     neighbour list)."""
     _drift_centre(b, dim, deform, lgrad, dt, half, pos, vel, force, torque, inv_mass,
@@ -543,7 +544,7 @@ def pair_force(dim, code, deform, rate, turns, spin, k, i, j, a, b, swap, sx, sy
     ``fpair[k]``, torques on i and j in ``tpair[k]``, geometry in ``pgeom[k]``. In a
     deforming cell (``deform``) the bodies' velocities are fluctuations about the
     affine field ``L x``, whose stretching ``D l`` across the branch vector is added
-    (``rate``: ``L``, or the stretching of :func:`dem.contact.loops.cell_spin` when
+    (``rate``: ``L``, or the stretching of :func:`dem.contact.kinematics.cell_spin` when
     ``turns``; the spin turns the pair as a whole, and its spring with it)."""
     nr = tpair.shape[1] // 2
     if ov <= 0.0:
@@ -581,8 +582,8 @@ def pair_force(dim, code, deform, rate, turns, spin, k, i, j, a, b, swap, sx, sy
         rvx, rvy, rvz = add_strain_rate(dim, rate, lx, ly, lz, rvx, rvy, rvz)
         if turns:
             turn_spring(dim, spin, hist, k)
-    fx, fy, fz = _apply_law(code, ov, nx, ny, nz, rvx, rvy, rvz, r_eff, m_eff, params,
-                            mat_id[a], mat_id[b], hist, k, dt)
+    fx, fy, fz = apply_law(code, ov, nx, ny, nz, rvx, rvy, rvz, r_eff, m_eff, params,
+                           mat_id[a], mat_id[b], hist, k, dt)
     sgn = -1.0 if swap else 1.0  # rows are in (i, j) orientation
     fpair[k, 0] = sgn * fx
     fpair[k, 1] = sgn * fy
@@ -635,8 +636,8 @@ def wall_force(dim, code, k, i, w, ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel
     vwx, vwy = vel[w, 0], vel[w, 1]
     vwz = vel[w, 2] if dim == 3 else 0.0
     m = 1.0 / inv_mass[i] if inv_mass[i] > 0.0 else 0.0
-    fx, fy, fz = _apply_law(code, ov, nx, ny, nz, vwx - vix, vwy - viy, vwz - viz,
-                            ri, m, params, mat_id[i], mat_id[w], whist, k, dt)
+    fx, fy, fz = apply_law(code, ov, nx, ny, nz, vwx - vix, vwy - viy, vwz - viz,
+                           ri, m, params, mat_id[i], mat_id[w], whist, k, dt)
     # the body gets -f at arm r
     wforce[k, 0] = -fx
     wforce[k, 1] = -fy
@@ -686,7 +687,7 @@ def _part_pose(e, dim, ebody, eoff, eq, eprad, pos, rot, radius, normal, epos, e
 def _finish_rigid(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, mass,
                   inv_mass, inv_inertia, is_fixed, rot, vel, ang_vel, force, torque,
                   status_out):
-    """:func:`~dem.contact.loops.body_force`, then the second half kick (anisotropic
+    """:func:`~dem.contact.kinematics.body_force`, then the second half kick (anisotropic
     rotation in 3D)."""
     fx, fy, fz, tx, ty, tz = body_force(b, dim, fx, fy, fz, tx, ty, tz, gravity, damping,
                                         mass, is_fixed, vel, ang_vel, force, torque,

@@ -10,15 +10,8 @@ inherits it. Its state arrays are the shape bundles of :mod:`dem.state`.
 
 import numpy as np
 
-from .contact.shape_loop import (
-    BucketIndex,
-    Detection,
-    PartArrays,
-    method_for,
-    pair_incidence,
-    shape_stepper,
-    wall_method_for,
-)
+from .contact.shape_contacts import method_for, pair_incidence, wall_method_for
+from .contact.shape_loop import BucketIndex, Detection, PartArrays, shape_stepper
 from .neighbors import carry_history, incidence
 from .shapes import Shape
 from .state import NeighborArrays, ShapePairState, ShapeWallState

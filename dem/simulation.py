@@ -8,7 +8,8 @@ import numpy as np
 
 from ._jit import announce_compile
 from .boundary import PeriodicCell
-from .contact.loops import N_BLOCKS, InnerIndex, inner_index, stepper
+from .contact.loops import stepper
+from .contact.sphere_contacts import N_BLOCKS, InnerIndex, inner_index
 from .contact.model import ContactModel
 from .neighbors import NeighborList, carry_history, incidence
 from .shape_scene import ShapeScene

@@ -57,7 +57,7 @@ _WHERE = {
     "Adaptive": "micro",
     "SerialFarm": "farm", "MPIFarm": "farm", "make_farm": "farm",
     "Output": "io", "read_fields": "reader", "Fields": "reader",
-    "read_mesh": "problem", "clone_rve": "problem", "load_problem": "problem",
+    "read_mesh": "problem_build", "clone_rve": "problem_build", "load_problem": "problem",
     "validate_problem": "problem",
     "run_problem": "run",
 }

@@ -4,7 +4,7 @@
 ``[base]`` experiment (the sections of an ``hmm rve`` file: ``packing``, ``contact``,
 ``test``) and a ``[sweep]`` of variations of it: a ``grid`` (key path -> values, the
 Cartesian product) or a ``list`` of override tables. Every experiment is validated
-against :data:`hmm.experiment.RVE_SCHEMA` before anything runs and gets a stable id,
+against :data:`hmm.experiment_config.RVE_SCHEMA` before anything runs and gets a stable id,
 its index and a hash of its overrides (``003-1a2b3c4d``).
 
 The experiments run through the master-worker queue of :mod:`hmm.queue`, which
@@ -37,7 +37,8 @@ from dem.io.meta import stamp
 from dem.io.scene import Key, SceneError, Section, read_toml, validate
 from dem.limits import Limit, LimitError
 
-from .experiment import RVE_SCHEMA, SUMMARY_UNITS, UNITS, curve_attrs, validate_config
+from .experiment_config import RVE_SCHEMA, validate_config
+from .experiment_output import SUMMARY_UNITS, UNITS, curve_attrs
 
 log = logging.getLogger(__name__)
 

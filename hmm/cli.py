@@ -133,11 +133,11 @@ def main(argv=None):
 
 
 def _on_signals():
-    """SIGINT and SIGTERM (unless ignored) raise :class:`hmm.farm.Interrupted` (an MPI
+    """SIGINT and SIGTERM (unless ignored) raise :class:`hmm.signals.Interrupted` (an MPI
     farm or batch defers them to its own checks); returns the previous handlers."""
     import threading
 
-    from .farm import interrupt
+    from .signals import interrupt
 
     old = {}
     if threading.current_thread() is threading.main_thread():
@@ -153,11 +153,11 @@ _hooks = []  # the unraisable hooks _on_signals replaced (restored by main)
 
 
 def _unraisable(info):
-    """An :class:`hmm.farm.Interrupted` raised inside a weakref callback or a
+    """An :class:`hmm.signals.Interrupted` raised inside a weakref callback or a
     ``__del__`` is dropped by Python, which would print it: it is raised again at the
-    next check (:func:`hmm.farm.raise_pending`), so it is not printed. Anything
+    next check (:func:`hmm.signals.raise_pending`), so it is not printed. Anything
     else goes to Python's own hook."""
-    from .farm import Interrupted
+    from .signals import Interrupted
 
     if not isinstance(info.exc_value, Interrupted):
         (_hooks[-1] if _hooks else sys.__unraisablehook__)(info)
@@ -165,7 +165,7 @@ def _unraisable(info):
 
 def _interruptible(args):
     """Run the command; a signal outside its own handling is one line too."""
-    from .farm import Interrupted, reported
+    from .signals import Interrupted, reported
 
     try:
         return args.func(args)
@@ -229,7 +229,8 @@ def _solve(problem, args, prog):
     from dem.simulation import SimulationError
 
     from .coupling import SolverError
-    from .farm import Interrupted, mpi_world
+    from .farm import mpi_world
+    from .signals import Interrupted
     from .run import run_problem
 
     directory = _directory(problem, args)
@@ -475,7 +476,8 @@ def cmd_batch(args):
     from dem.io.scene import SceneError
 
     from .batch import load_sweep
-    from .farm import Interrupted, mpi_world
+    from .farm import mpi_world
+    from .signals import Interrupted
     from .queue import RankFailure, run_batch
 
     MPI, comm = mpi_world()

@@ -32,7 +32,7 @@ def plan_run(problem, directory, overwrite=False, restart=False, stop_after=None
     Raises SceneError, FileExistsError, FileNotFoundError, ValueError or OSError
     (one line each), as the real run does for the same input.
     """
-    from .problem import build_loads, build_macro, build_porous
+    from .problem_build import build_loads, build_macro, build_porous
 
     directory = Path(directory)
     macro = build_macro(problem)
@@ -76,7 +76,7 @@ def _check_restart(problem, directory, macro, supports, porous, schedule, stop_a
     the micro states of analytic models); nothing is changed."""
     from .checkpoint import Checkpoint
     from .io import Output
-    from .problem import build_farm
+    from .problem_build import build_farm
     from .run import _check_stop, _refuse_directories
 
     _refuse_directories(directory)
@@ -104,7 +104,7 @@ def _check_packings(problem, macro):
     """Read the packing files the run reads (``[micro] packing``, and the packing of
     every ``[[imperfection]]`` that holds a Gauss point), with the run's checks;
     return the particles of one RVE (None for analytic models)."""
-    from .problem import _packing, spot_of
+    from .problem_build import _packing, spot_of
 
     mc = problem["micro"]
     if mc["model"] not in ("dem", "adaptive"):
@@ -123,7 +123,8 @@ def _check_packings(problem, macro):
 def plan_rve(cfg, out_dir=None, overwrite=False):
     """Check a validated RVE test as :func:`hmm.experiment.run_experiment` would
     (its packing file read and checked), writing nothing; return the plan."""
-    from .experiment import make_packing, n_increments, output_paths
+    from .experiment import make_packing, output_paths
+    from .experiment_config import n_increments
 
     paths = output_paths(cfg, out_dir)
     check_new_files(paths, overwrite)
@@ -142,7 +143,7 @@ def plan_rve(cfg, out_dir=None, overwrite=False):
 
 def _test_seconds(cfg, n, dim):
     """The cost model's seconds of one RVE test of ``n`` particles."""
-    from .experiment import n_increments
+    from .experiment_config import n_increments
 
     t, p = cfg["test"], cfg["packing"]
     return rve_test_seconds(n, dim, n_increments(t), t.get("increment") or 1e-4,
@@ -157,7 +158,8 @@ def plan_batch(sweep, out_dir=None, overwrite=False):
     experiments read, an existing ``batch.h5`` checked for resuming), writing
     nothing; return the plan."""
     from .batch import OUTPUTS, Store
-    from .experiment import make_packing, n_increments
+    from .experiment import make_packing
+    from .experiment_config import n_increments
 
     out = Path(sweep.out_dir if out_dir is None else out_dir)
     files = [out / name for name in OUTPUTS]

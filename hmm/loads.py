@@ -1,7 +1,7 @@
 """External loads that depend on the configuration (finite kinematics).
 
 Under small kinematics every load is a fixed vector of nodal forces, assembled once
-(:func:`hmm.problem.build_loads`). Under finite kinematics a pressure follows the
+(:func:`hmm.problem_build.build_loads`). Under finite kinematics a pressure follows the
 deformed boundary, and a traction or body force may be stated per unit *current*
 area or volume: their nodal forces change with the displacement, and so does the
 Newton matrix (the load stiffness ``d f / d u``, subtracted from the internal one).

@@ -16,8 +16,8 @@ input: rank 0 tells every rank to stop (a rank busy with an experiment stops aft
 its current increment) and the batch ends with a message naming the experiment.
 Every path through :func:`run_batch` ends with all workers stopped and the outcome
 sent from rank 0, so no rank is left waiting. Every wait polls, and a SIGINT or
-SIGTERM on any rank (:class:`hmm.farm.SignalWatch`) ends the batch on every rank
-with :class:`hmm.farm.Interrupted` within milliseconds of its next check (after each
+SIGTERM on any rank (:class:`hmm.signals.SignalWatch`) ends the batch on every rank
+with :class:`hmm.signals.Interrupted` within milliseconds of its next check (after each
 increment, in each wait); ``batch.h5`` holds every experiment recorded before it.
 
 The sweep file, the experiment ids, ``batch.h5`` (and resuming it) and the summaries
@@ -36,7 +36,8 @@ from dem.io.scene import SceneError
 
 from .batch import OUTPUTS, Store, write_summaries
 from .experiment import compress, make_packing
-from .farm import Interrupted, SignalWatch, log_pids, mpi_world, raise_pending
+from .farm import mpi_world
+from .signals import Interrupted, SignalWatch, log_pids, raise_pending
 
 log = logging.getLogger(__name__)
 
@@ -256,7 +257,7 @@ def run_batch(sweep, out_dir=None, overwrite=False, progress=None, world=None):
     if comm is None:
         return _lead(sweep, out_dir, overwrite, progress, _Master(None, None))
     log_pids(comm)
-    watch = SignalWatch(comm).open()
+    watch = SignalWatch(comm, MPI).open()
     try:
         if comm.rank != 0:
             return _work(MPI, comm, watch)

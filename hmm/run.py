@@ -19,9 +19,11 @@ from .checkpoint import Checkpoint
 from .checkpoint import save as save_checkpoint
 from .coupling import Solver, SolverError, SolverSettings
 from .porous import BiotSolver
-from .farm import Interrupted, mpi_world
+from .farm import mpi_world
+from .signals import Interrupted
 from .io import Output
-from .problem import build_farm, build_loads, build_macro, build_porous, validate_problem
+from .problem import validate_problem
+from .problem_build import build_farm, build_loads, build_macro, build_porous
 
 log = logging.getLogger(__name__)
 

@@ -7,7 +7,8 @@ is an edge to ``dem.shapes.table``, ``from . import rotation`` one to ``dem.rota
 The asserted rules: no import cycle; ``dem`` never imports ``hmm``; ``mpi4py`` is
 imported in ``hmm/farm.py`` only, and there only inside functions (the suite runs
 serially through the same code); the kernels' status codes are defined in
-``dem/status.py`` only.
+``dem/status.py`` only; no module is longer than 600 lines but those listed in
+:data:`LONG_MODULES` with their reason.
 """
 
 import ast
@@ -223,3 +224,36 @@ def test_status_codes_are_defined_once():
                 found += [f"{path.relative_to(ROOT)}:{node.lineno} {e.id}" for e in elts
                           if isinstance(e, ast.Name) and e.id in names]
     assert not found, "status codes defined outside dem/status.py: " + ", ".join(found)
+
+
+#: the most lines a module of ``dem`` or ``hmm`` may have
+MAX_LINES = 600
+#: modules allowed above :data:`MAX_LINES`, each with its reason
+LONG_MODULES = {
+    "dem/io/scene.py": "being split separately",
+    "dem/io/checkpoint.py": "being split separately",
+}
+
+
+def long_modules(files, limit=MAX_LINES, root=ROOT):
+    """``{path relative to root: line count}`` of the files of ``files`` above ``limit``."""
+    counts = {path.relative_to(root).as_posix(): len(path.read_text().splitlines())
+              for path in files.values()}
+    return {path: n for path, n in counts.items() if n > limit}
+
+
+def test_the_line_count_sees_a_long_module(tmp_path):
+    (tmp_path / "short.py").write_text("x = 1\n" * 3)
+    (tmp_path / "long.py").write_text("x = 1\n" * 4)
+    files = {"short": tmp_path / "short.py", "long": tmp_path / "long.py"}
+    assert long_modules(files, limit=3, root=tmp_path) == {"long.py": 4}
+    assert long_modules(files, limit=4, root=tmp_path) == {}
+
+
+def test_no_module_over_600_lines():
+    long = long_modules(FILES)
+    unexplained = {path: n for path, n in long.items() if path not in LONG_MODULES}
+    assert not unexplained, (f"modules over {MAX_LINES} lines (split them, or list one "
+                             f"with its reason in LONG_MODULES): {unexplained}")
+    stale = sorted(set(LONG_MODULES) - set(long))
+    assert not stale, f"listed in LONG_MODULES but no longer over {MAX_LINES} lines: {stale}"

@@ -231,7 +231,7 @@ def test_shear_band_problem_puts_its_weak_spot_on_the_left_side():
     support at the middle of the base, the weak spot holds Gauss points near the
     left side only, with half the friction. (Its full run is in docs/multiscale.md;
     the DEM run at small size is the biaxial test of tests/hmm/test_run.py.)"""
-    from hmm.problem import build_loads, build_macro, spot_of, vertex_at
+    from hmm.problem_build import build_loads, build_macro, spot_of, vertex_at
 
     prob = _problem("shear_band")
     macro = build_macro(prob)
@@ -260,7 +260,7 @@ def test_strip_footing_small_load_settlement(tmp_path):
     settled by 0.3 mm under the footing."""
     import h5py
 
-    from hmm.problem import build_macro
+    from hmm.problem_build import build_macro
     from hmm.run import run_problem
 
     prob = _problem("strip_footing")

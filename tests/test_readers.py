@@ -317,12 +317,13 @@ def test_a_restart_brings_a_version_1_file_up_to_date(tmp_path):
 # --------------------------------------------------------------------------- rve, batch
 def test_rve_test_and_batch_files_carry_units_and_signs(tmp_path):
     from hmm.batch import Store, expand
-    from hmm.experiment import CompressionResult, _write_h5
+    from hmm.experiment import CompressionResult
+    from hmm.experiment_output import write_h5
 
     curves = {"axial_strain": np.linspace(0.0, 0.01, 3), "p": np.full(3, 1e5),
               "stress": np.zeros((3, 2, 2)), "void_ratio": np.full(3, 0.2)}
     result = CompressionResult(curves, {"dim": 2}, {"test": {"kind": "drained"}}, True)
-    _write_h5(tmp_path / "rve_test.h5", result)
+    write_h5(tmp_path / "rve_test.h5", result)
     _assert_tagged(tmp_path / "rve_test.h5", "hmm.rve_test", 1)
     _assert_every_dataset_has_a_unit(tmp_path / "rve_test.h5")
     attrs = _datasets(tmp_path / "rve_test.h5")

@@ -138,6 +138,14 @@ def energy_hertz_mindlin(ov, r_eff, p, hist, k):
 
 
 # --------------------------------------------------------------------------- batches (observers)
+@kernel(inline=True)
+def apply_law(code, ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt):
+    """Force on j from the law with this ``code`` (a constant: other branches fold away)."""
+    if code == 0:
+        return law_linear(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt)
+    return law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt)
+
+
 @kernel
 def contact_stiffness(code, ov, r_eff, p, ma, mb, kn_out, kt_out):
     """Tangent stiffnesses [N/m] of many contacts of law ``code`` (observers, not steps)."""

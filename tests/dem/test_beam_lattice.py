@@ -12,7 +12,7 @@ from dem.peridynamics.beam_lattice import (
     lattice_cantilever,
     lattice_constants,
 )
-from dem.peridynamics.beams import bond_beam_3d
+from dem.peridynamics.beam_kernels import bond_beam_3d
 
 EXAMPLE = Path(__file__).resolve().parents[2] / "examples" / "beams_lattice.py"
 E, DENSITY = 1.0e9, 1000.0

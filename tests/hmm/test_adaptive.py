@@ -10,7 +10,7 @@ from hmm.coupling import Solver, Supports
 from hmm.farm import SerialFarm
 from hmm.macro import Macro, structured_mesh
 from hmm.micro import Adaptive, DEMMicroModel
-from hmm.problem import clone_rve
+from hmm.problem_build import clone_rve
 
 
 @pytest.fixture(scope="module")

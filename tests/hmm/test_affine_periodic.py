@@ -15,13 +15,8 @@ import pytest
 
 import hmm
 from dem.io.scene import SceneError
-from hmm.problem import (
-    build_farm,
-    build_loads,
-    build_macro,
-    load_problem,
-    validate_problem,
-)
+from hmm.problem import load_problem, validate_problem
+from hmm.problem_build import build_farm, build_loads, build_macro
 from hmm.run import run_problem
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -299,7 +299,7 @@ def test_one_element_under_homogeneous_strain_follows_the_standalone_rve():
     import dem
     from dem import rve as rvemod
     from hmm.micro import DEMMicroModel
-    from hmm.problem import clone_rve
+    from hmm.problem_build import clone_rve
 
     law = dem.LinearSpring(kn=1e8, kt=5e7, mu=0.5)
     packing = rvemod.generate(2, 30, (0.8e-3, 1.2e-3), law, p0=1e5, friction=0.0, seed=4)

@@ -18,7 +18,8 @@ from hmm.farm import SerialFarm
 from hmm.loads import CurrentBodyForce, CurrentTraction, FollowerPressure
 from hmm.macro import Macro, structured_mesh
 from hmm.micro import DEMMicroModel, Hypoelastic, LinearElastic, NeoHookean
-from hmm.problem import clone_rve, validate_problem
+from hmm.problem import validate_problem
+from hmm.problem_build import clone_rve
 from hmm.tensors import log_strain
 
 E, NU = 1e6, 0.3
@@ -182,7 +183,7 @@ def test_rigid_rotation_turns_an_rve_of_polygons_with_it():
     turned outline, not on a disk's)."""
     import copy
 
-    from hmm.problem import build_macro, model_factory
+    from hmm.problem_build import build_macro, model_factory
     from hmm.run import DEMO
 
     prob = copy.deepcopy(DEMO)
@@ -642,7 +643,8 @@ def test_integration_is_a_choice_of_the_quadratic_quads_and_hexahedra():
             "dirichlet": [{"boundary": "bottom", "component": "y"}],
             "micro": {"model": "neo_hookean", "young": E, "poisson": NU}}
     from hmm.macro import INTEGRATION
-    from hmm.problem import QUADRATURE_CHOICE, build_macro
+    from hmm.problem_build import build_macro
+    from hmm.problem_schema import QUADRATURE_CHOICE
 
     assert set(QUADRATURE_CHOICE) == set(INTEGRATION)  # the file and the solver agree
     for rule, n in ((None, 4), ("reduced", 4), ("full", 9)):

@@ -7,7 +7,7 @@ import pytest
 import dem
 from dem import rve as rvemod
 from hmm.micro import Adaptive, DEMMicroModel, Hyperbolic, LinearElastic, stress_ratio
-from hmm.problem import clone_rve
+from hmm.problem_build import clone_rve
 
 
 @pytest.fixture(scope="module")

@@ -14,7 +14,8 @@ from hmm.coupling import SolverSettings
 from hmm.farm import SerialFarm
 from hmm.micro import LinearElastic
 from hmm.porous import BiotSolver
-from hmm.problem import build_loads, build_macro, build_porous, validate_problem
+from hmm.problem import validate_problem
+from hmm.problem_build import build_loads, build_macro, build_porous
 from hmm.run import run_problem
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 import hmm
-from hmm.problem import build_loads, build_macro, validate_problem
+from hmm.problem import validate_problem
+from hmm.problem_build import build_loads, build_macro
 
 ROOT = Path(__file__).resolve().parents[2]
 

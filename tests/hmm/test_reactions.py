@@ -12,7 +12,8 @@ from hmm.coupling import Solver, Supports
 from hmm.farm import SerialFarm
 from hmm.macro import Macro, structured_mesh
 from hmm.micro import LinearElastic
-from hmm.problem import build_loads, build_macro, validate_problem
+from hmm.problem import validate_problem
+from hmm.problem_build import build_loads, build_macro
 from hmm.run import run_problem
 
 E, NU = 1e6, 0.3

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from dem.io.scene import SceneError
-from hmm.problem import build_macro, model_factory, spot_of, validate_problem
+from hmm.problem import validate_problem
+from hmm.problem_build import build_macro, model_factory, spot_of
 from hmm.run import run_problem
 
 ELASTIC = {

@@ -12,7 +12,8 @@ import pytest
 from problems import elastic_problem
 
 from dem.io.scene import SceneError
-from hmm.problem import load_problem, schema_markdown, validate_problem
+from hmm.problem import load_problem, validate_problem
+from hmm.problem_schema import schema_markdown
 from hmm.run import DEMO, run_problem
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -115,7 +116,7 @@ def test_multiscale_with_polygon_rves(tmp_path):
     """[micro] shape = "polygon": the Gauss points run RVEs of hexagons (one element,
     4 points of 12 hexagons, one load step) and the run converges with the lateral
     stress near the confining pressure; a polygon in a 3D mesh is refused."""
-    from hmm.problem import build_macro, model_factory
+    from hmm.problem_build import build_macro, model_factory
 
     prob = copy.deepcopy(DEMO)
     prob["mesh"]["cells"] = [1, 1]

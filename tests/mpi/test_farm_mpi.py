@@ -16,13 +16,8 @@ MPI = pytest.importorskip("mpi4py.MPI")
 from hmm.coupling import Solver, SolverSettings
 from hmm.farm import MPIFarm, SerialFarm
 from hmm.micro import LinearElastic
-from hmm.problem import (
-    build_loads,
-    build_macro,
-    build_porous,
-    model_factory,
-    validate_problem,
-)
+from hmm.problem import validate_problem
+from hmm.problem_build import build_loads, build_macro, build_porous, model_factory
 from hmm.run import DEMO, run_problem
 
 pytestmark = pytest.mark.mpi

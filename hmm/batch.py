@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from dem.io.meta import stamp
-from dem.io.scene import Key, SceneError, Section, read_toml, validate
+from dem.io.schema import Key, SceneError, Section, read_toml, validate
 from dem.limits import Limit, LimitError
 
 from .experiment_config import RVE_SCHEMA, validate_config
@@ -135,7 +135,7 @@ def expand(data, source="<sweep>", base_dir="."):
     ... # doctest: +ELLIPSIS
     Traceback (most recent call last):
     ...
-    dem.io.scene.SceneError: <sweep>: [sweep] grid: ... (did you mean 'test.confining'?)
+    dem.io.schema.SceneError: <sweep>: [sweep] grid: ... (did you mean 'test.confining'?)
     """
     if not isinstance(data, dict):
         raise SceneError(f"{source}: the file must be a TOML table")

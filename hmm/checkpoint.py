@@ -25,7 +25,7 @@ import os
 import h5py
 import numpy as np
 
-from dem.io.checkpoint import state_units
+from dem.io.meta import state_units
 from dem.io.files import write_h5_atomic
 from dem.io.hdf5 import read_bounded
 from dem.io.meta import COMPRESSION, ONE, TENSION, label, rules, stamp
@@ -67,7 +67,7 @@ def problem_digest(problem):
 def checkpoint_units(dim):
     """The unit rules (:func:`dem.io.meta.rules`) of ``checkpoint.h5``: the solver
     state, the curve as in ``fields.h5`` and the micro states (those of a DEM state,
-    :func:`dem.io.checkpoint.state_units`)."""
+    :func:`dem.io.meta.state_units`)."""
     return rules((r"solver/u", "m", None), (r"solver/sigma", "Pa", TENSION),
                  (r"solver/tangent", "Pa", None), (r"solver/p", "Pa", COMPRESSION),
                  (r"solver/iterations", ONE, None)) \

@@ -198,7 +198,7 @@ def _cmd_demo(args):
 
 
 def _cmd_run(args):
-    from dem.io.scene import SceneError
+    from dem.io.schema import SceneError
 
     from .problem import load_problem
 
@@ -225,7 +225,7 @@ def _directory(problem, args):
 
 def _solve(problem, args, prog):
     from dem.io.files import OutputError
-    from dem.io.scene import SceneError
+    from dem.io.schema import SceneError
     from dem.simulation import SimulationError
 
     from .coupling import SolverError
@@ -339,7 +339,7 @@ def cmd_rve(args):
     ``overwrite``; optional ``no_progress``. Returns the exit status: 0 done, 1 the
     packing did not relax, 2 bad input (invalid file, existing output).
     """
-    from dem.io.scene import SceneError
+    from dem.io.schema import SceneError
     from dem.simulation import SimulationError
 
     from .experiment import load_config, run_experiment
@@ -473,7 +473,7 @@ def cmd_batch(args):
     rank: 0 every experiment done, 1 some failed or the batch stopped early, 2 bad
     input (nothing ran), 130 interrupted. Only rank 0 prints.
     """
-    from dem.io.scene import SceneError
+    from dem.io.schema import SceneError
 
     from .batch import load_sweep
     from .farm import mpi_world
@@ -530,7 +530,7 @@ def cmd_batch(args):
 
 def _dry_batch(sweep, args):
     """``hmm batch --dry-run``: the checks of :func:`hmm.dryrun.plan_batch`, its plan."""
-    from dem.io.scene import SceneError
+    from dem.io.schema import SceneError
 
     from .dryrun import plan_batch
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from dem.cost import fe2_seconds, rve_test_seconds, time_line
 from dem.io.plan import check_new_files, check_writable_dir
-from dem.io.scene import SceneError
+from dem.io.schema import SceneError
 from dem.limits import memory_estimate
 
 __all__ = ["plan_batch", "plan_rve", "plan_run"]

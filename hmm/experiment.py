@@ -37,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dem.io.scene import SceneError
+from dem.io.schema import SceneError
 
 from .experiment_config import RVE_SCHEMA, load_config, shape_maker, validate_config
 from .experiment_output import SUMMARY_UNITS, UNITS, write_figure, write_h5

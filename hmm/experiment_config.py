@@ -9,7 +9,7 @@ keys of an RVE test and of a problem file's ``[micro]`` alike.
 import math
 from pathlib import Path
 
-from dem.io.scene import REQUIRED, Key, Range, SceneError, Section, read_toml, validate
+from dem.io.schema import REQUIRED, Key, Range, SceneError, Section, read_toml, validate
 from dem.io.scene import SCHEMA as SCENE_SCHEMA
 from dem.io.text import fmt as _fmt
 from dem.limits import PARTICLES, Limit, LimitError, check_particle_scales
@@ -144,7 +144,7 @@ def validate_config(data, source="<rve>", base_dir="."):
     >>> validate_config({"packing": {"count": 50, "radius": 1e-3, "p0": -1}})
     Traceback (most recent call last):
     ...
-    dem.io.scene.SceneError: <rve>: [packing] p0 must be > 0, got -1
+    dem.io.schema.SceneError: <rve>: [packing] p0 must be > 0, got -1
     """
     packing = data.get("packing") if isinstance(data, dict) else None
     from_file = isinstance(packing, dict) and "file" in packing

@@ -114,7 +114,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dem.io.scene import read_toml, validate
+from dem.io.schema import read_toml, validate
 from dem.limits import PARTICLES, LimitError, check_particle_scales
 
 from .problem_build import build_farm, build_loads, build_macro
@@ -154,7 +154,7 @@ def validate_problem(data, source="<problem>", base_dir="."):
     ...                   "micro": {"model": "dem", "young": 1e6}})
     Traceback (most recent call last):
     ...
-    dem.io.scene.SceneError: <problem>: [micro] young is not used with model = "dem" (only with "linear_elastic", "hyperbolic", "hypoelastic" or "neo_hookean")
+    dem.io.schema.SceneError: <problem>: [micro] young is not used with model = "dem" (only with "linear_elastic", "hyperbolic", "hypoelastic" or "neo_hookean")
     """
     out, ctx = validate(data, SCHEMA, source, base_dir, dim_key=("mesh", "dim"))
     m = out["mesh"]

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dem.io.scene import SceneError
+from dem.io.schema import SceneError
 from dem.limits import PARTICLES, LimitError
 
 from .conditions import (

@@ -2,8 +2,8 @@
 and ranges, and the reference generated from it (:func:`schema_markdown`).
 """
 
-from dem.io.scene import REQUIRED, Key, Range, Section
-from dem.io.scene import schema_markdown as _markdown
+from dem.io.schema import REQUIRED, Key, Range, Section
+from dem.io.schema import schema_markdown as _markdown
 from dem.limits import Limit
 
 __all__ = ["ANALYTIC", "COMPONENTS", "ELEMENTS_2D", "ELEMENTS_3D", "KINEMATICS",

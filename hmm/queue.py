@@ -32,7 +32,7 @@ from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from dem.io.scene import SceneError
+from dem.io.schema import SceneError
 
 from .batch import OUTPUTS, Store, write_summaries
 from .experiment import compress, make_packing

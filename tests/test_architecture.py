@@ -229,10 +229,7 @@ def test_status_codes_are_defined_once():
 #: the most lines a module of ``dem`` or ``hmm`` may have
 MAX_LINES = 600
 #: modules allowed above :data:`MAX_LINES`, each with its reason
-LONG_MODULES = {
-    "dem/io/scene.py": "being split separately",
-    "dem/io/checkpoint.py": "being split separately",
-}
+LONG_MODULES = {}
 
 
 def long_modules(files, limit=MAX_LINES, root=ROOT):

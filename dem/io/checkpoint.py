@@ -20,7 +20,8 @@ A checkpoint is an HDF5 file holding the full state of a :class:`~dem.Simulation
     /model/      params_pp, params_pw: the parameter tables in use (a restart with
                  other tables is allowed but logged as a warning)
 
-Every dataset carries ``unit`` (and ``sign`` where it matters): :func:`state_units`.
+Every dataset carries ``unit`` (and ``sign`` where it matters):
+:func:`dem.io.meta.state_units`.
 
 Observers, controllers and state objects are not saved: pass them again to
 :func:`load_checkpoint`. The contact model is code, not data: pass it too.
@@ -42,7 +43,7 @@ from ..simulation import Simulation
 from ..state import Bodies
 from .files import OutputError, write_h5_atomic
 from .hdf5 import read_bounded
-from .meta import ONE, TENSION, label, rules, stamp
+from .meta import label, stamp, state_units
 
 log = logging.getLogger(__name__)
 
@@ -52,48 +53,6 @@ VERSION = 1
 
 _F8, _I4 = np.dtype(np.float64), np.dtype(np.int32)
 
-#: any path prefix: a group (``bodies/``) or a snapshot key's (``b.``, ``cell_``)
-_ANY = r"(?:.*[/._])?"
-#: units of the arrays of a simulation's state, by name (a checkpoint's datasets,
-#: a snapshot's keys, an RVE's state inside an hmm checkpoint)
-STATE_UNITS = (
-    (_ANY + r"(pos|pos_ref|pos_inner|radius|radius_ref|brad|part_off|part_rad|verts"
-     r"|lo|hi|origin|h|param)", "m", None),
-    (_ANY + r"(hist|whist)", "m", "tangential spring of the law's history"),
-    (_ANY + r"ang_vel", "rad/s", "counter-clockwise positive (right-handed)"),
-    (_ANY + r"vel", "m/s", None),
-    (_ANY + r"(force|fpair|wforce)", "N", None),
-    (_ANY + r"(torque|wtorque|tpair)", "N m", None),
-    (_ANY + r"mass", "kg", None),
-    (_ANY + r"inertia", "kg m^2", None),
-    (_ANY + r"density", "kg/m^3", None),
-    (_ANY + r"gravity", "m/s^2", None),
-    (_ANY + r"wall_work", "J", None),
-    (_ANY + r"lgrad", "1/s", None),
-    (_ANY + r"cellref", "1/m", "inverse cell matrices"),
-    (_ANY + r"(kind|mat_id|is_fixed|shape|normal|pairs|img|wall_pairs|touch|iters"
-     r"|witers|inner|n_inner|clock|n|vstart|fstart|tstart|tris|cstart|part_kind"
-     r"|part_row|part_rot|scale|periodic|deformation|iterations|pending|active"
-     r"|strain)", ONE, None),
-    (_ANY + r"(pgeom|wgeom)", "mixed", "columns: overlap [m] (positive in contact), "
-                                       "contact point [m], normal [1]"),
-    (_ANY + r"(warm|wwarm)", "mixed", "warm start of the ADMM contact solver"),
-    (_ANY + r"xform", "mixed", "rotation [1] (9) and offset [m] (3)"),
-    (_ANY + r"faces", "mixed", "outward normal [1] (3) and offset [m] (1)"),
-    (_ANY + r"params_p[pw]", "mixed", "the contact law's parameters, SI"),
-    (_ANY + r"(stress|sigma)", "Pa", TENSION),
-    (_ANY + r"(tangent|c_elastic)", "Pa", None),
-)
-
-
-def state_units(dim):
-    """The unit rules (:func:`dem.io.meta.rules`) of a ``dim``-dimensional state:
-    :data:`STATE_UNITS` with the orientation ``rot`` (an angle [rad] in 2D, a
-    quaternion in 3D)."""
-    where = r"(?:.*[/.])?rot"  # a body's, not a compound part's (part_rot)
-    rot = (where, "rad", "counter-clockwise positive") if dim == 2 else \
-        (where, ONE, "(w, x, y, z), rotation body to world")
-    return rules(*STATE_UNITS, rot)
 _B = np.dtype(bool)
 
 

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import hmm
-from dem.io.scene import SceneError
+from dem.io.schema import SceneError
 from hmm.problem import load_problem, validate_problem
 from hmm.problem_build import build_farm, build_loads, build_macro
 from hmm.run import run_problem

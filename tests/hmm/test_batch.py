@@ -11,7 +11,7 @@ import h5py
 import numpy as np
 import pytest
 
-from dem.io.scene import SceneError, schema_markdown
+from dem.io.schema import SceneError, schema_markdown
 from hmm import batch, queue
 from hmm.batch import BATCH_SCHEMA, expand, load_sweep, read_batch
 from hmm.cli import cmd_batch

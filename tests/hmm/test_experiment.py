@@ -8,7 +8,7 @@ import h5py
 import numpy as np
 import pytest
 
-from dem.io.scene import SceneError, schema_markdown
+from dem.io.schema import SceneError, schema_markdown
 from dem.rve import RVE
 from hmm.cli import cmd_rve
 from hmm.experiment import (

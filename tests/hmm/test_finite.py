@@ -11,7 +11,7 @@ from skfem import Basis
 
 import dem
 from dem import rve as rvemod
-from dem.io.scene import SceneError
+from dem.io.schema import SceneError
 from dem.observers import elastic_energy
 from hmm.coupling import Solver, SolverError, SolverSettings, Supports
 from hmm.farm import SerialFarm

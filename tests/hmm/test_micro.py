@@ -142,7 +142,7 @@ def test_the_perturbation_tangent_needs_relaxed_calls(packing):
     assert np.all(diag[False] < 0.0)
     with pytest.raises(ValueError, match="relax = false use the contact tangent"):
         DEMMicroModel(clone_rve(packing), tangent="perturbation", relax=False)
-    from dem.io.scene import SceneError
+    from dem.io.schema import SceneError
     from hmm.problem import validate_problem
 
     prob = {"mesh": {"size": [1.0, 1.0], "cells": [1, 1]},

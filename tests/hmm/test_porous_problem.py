@@ -9,7 +9,7 @@ import h5py
 import numpy as np
 import pytest
 
-from dem.io.scene import SceneError
+from dem.io.schema import SceneError
 from hmm.coupling import SolverSettings
 from hmm.farm import SerialFarm
 from hmm.micro import LinearElastic

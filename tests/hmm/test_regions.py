@@ -6,7 +6,7 @@ import copy
 import numpy as np
 import pytest
 
-from dem.io.scene import SceneError
+from dem.io.schema import SceneError
 from hmm.problem import validate_problem
 from hmm.problem_build import build_macro, model_factory, spot_of
 from hmm.run import run_problem

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from problems import elastic_problem
 
-from dem.io.scene import SceneError
+from dem.io.schema import SceneError
 from hmm.problem import load_problem, validate_problem
 from hmm.problem_schema import schema_markdown
 from hmm.run import DEMO, run_problem

@@ -91,6 +91,18 @@ def _start(path, out):
     return proc
 
 
+def _interrupted(tmp_path, scene, signum):
+    """Run ``scene`` (made long) in a subprocess, send ``signum`` once it runs; its
+    output folder and stderr, after checking the exit status 128 + signum."""
+    scene["simulation"]["steps"] = 10_000_000
+    out = tmp_path / "out"
+    proc = _start(write_scene(tmp_path, scene), out)
+    proc.send_signal(signum)
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 128 + signum, err
+    return out, err
+
+
 def _dem(*args):
     proc = subprocess.run([sys.executable, "-m", "dem", "run", *map(str, args),
                            "--no-progress"], env=ENV, text=True, capture_output=True,
@@ -106,12 +118,7 @@ def test_a_signal_stops_the_run_at_a_checkpoint_that_continues_it(tmp_path):
     """SIGTERM mid-run: the frames so far are kept, a checkpoint at the step it
     stopped is written, exit 143; continued, the run ends as one never stopped."""
     s = _scene(every=10_000_000)  # no periodic checkpoint before the signal
-    s["simulation"]["steps"] = 10_000_000
-    out = tmp_path / "out"
-    proc = _start(write_scene(tmp_path, s), out)
-    proc.send_signal(signal.SIGTERM)
-    _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 143, err
+    out, err = _interrupted(tmp_path, s, signal.SIGTERM)
     assert_one_line_error(err, "interrupted by SIGTERM at step ",
                           "checkpoint.h5 holds step ", "(continue with --restart)")
     stopped = int(err.split("at step ")[1].split(";")[0])
@@ -130,13 +137,7 @@ def test_a_signal_stops_the_run_at_a_checkpoint_that_continues_it(tmp_path):
 
 
 def test_without_checkpoints_a_signal_says_so(tmp_path):
-    s = _scene(every=0)
-    s["simulation"]["steps"] = 10_000_000
-    out = tmp_path / "out"
-    proc = _start(write_scene(tmp_path, s), out)
-    proc.send_signal(signal.SIGINT)
-    _, err = proc.communicate(timeout=120)
-    assert proc.returncode == 130, err
+    out, err = _interrupted(tmp_path, _scene(every=0), signal.SIGINT)
     assert_one_line_error(err, "interrupted by SIGINT at step ", "no checkpoint")
     assert (out / "scene.h5").exists() and not (out / "checkpoint.h5").exists()
 

@@ -241,6 +241,51 @@ def supports(macro, dirichlet=(), platens=(), periodic=(), gradient=None):
     return sup
 
 
+def free_rigid_motions(macro, sup, tol=1e-8):
+    """The rigid-body motions the supports ``sup`` leave free, as words.
+
+    A rigid motion (a translation, or a rotation about any axis) that vanishes on every
+    prescribed degree of freedom and moves every group of ``sup.ties`` as one costs no
+    energy: the tangent is singular and no load step converges. The motions are the
+    null space of the rigid modes restricted to those constraints (so a rotation about
+    an axis through any point counts); each is named by its largest part. An empty
+    list: the supports hold the body.
+
+    >>> from hmm.macro import Macro, structured_mesh
+    >>> macro = Macro(structured_mesh("quad1", [1.0, 1.0], [2, 2]))
+    >>> free_rigid_motions(macro, supports(macro, [Dirichlet("bottom", "y")]))
+    ['a translation along x']
+    """
+    d, basis = macro.dim, macro.basis
+    x = basis.doflocs
+    comp = np.zeros(basis.N, np.int64)
+    every = basis.get_dofs(elements=True)
+    for c in range(d):
+        comp[every.all(f"u^{c + 1}")] = c
+    size = max(float(np.ptp(x, axis=1).max()), 1e-300)
+    rel = (x - x.mean(axis=1, keepdims=True)) / size
+    modes, names = [], []
+    for c in range(d):
+        modes.append((comp == c).astype(np.float64))
+        names.append(f"a translation along {'xyz'[c]}")
+    for axis in ((2,) if d == 2 else (0, 1, 2)):
+        i, j = [a for a in range(3) if a != axis][:2] if d == 3 else (0, 1)
+        r = np.zeros(basis.N)  # e_axis x (x - centre), scaled by the size
+        r[comp == i] = -rel[j, comp == i]
+        r[comp == j] = rel[i, comp == j]
+        modes.append(r)
+        names.append(f"a rotation about an axis along {'xyz'[axis]}")
+    m = np.array(modes).T  # (N, n_modes)
+    rows = [m[sup.dofs]] + [m[t[1:]] - m[t[0]] for t in sup.ties if len(t) > 1]
+    a = np.concatenate(rows) if rows else np.zeros((0, m.shape[1]))
+    s = np.linalg.svd(a, compute_uv=False) if a.size else np.zeros(0)
+    n_free = m.shape[1] - int(np.count_nonzero(s > tol * np.sqrt(basis.N)))
+    if n_free <= 0:
+        return []
+    null = np.linalg.svd(a)[2][m.shape[1] - n_free:] if a.size else np.eye(m.shape[1])
+    return [names[int(np.argmax(np.abs(v)))] for v in null]
+
+
 def _boundary_dofs(macro, boundary, component):
     known = macro.mesh.boundaries or {}
     if boundary not in known:

@@ -13,7 +13,9 @@ force" and "stiffness" mean: :mod:`hmm.macro`):
    check that no element inverts); the residual ``r = f_int - f_ext`` on the free
    degrees of freedom (both on the trial configuration under finite kinematics) and
    the correction ``K dd = -r`` follow; ``du += dd``.
-3. **Convergence** needs both ``|r_free| <= tol_residual * |f_int|`` and
+3. **Convergence** needs both ``|r_free| <= tol_residual * |f_int|`` (or ``|f_ext|``,
+   or, for a state with no stress such as a prescribed rigid rotation, a floor of
+   :data:`ROUNDOFF` times the largest tangent stiffness times ``|u|``) and
    ``|dd| <= tol_displacement * |u + du|`` (the total displacement: a micro model
    that relaxes to a tolerance answers with noise that a cut step must not have to
    beat); with ``check_residual`` false the correction alone, relative to the
@@ -48,6 +50,10 @@ log = logging.getLogger(__name__)
 #: a Gauss point whose volume ratio det F falls to this is inverted (or flattened to
 #: round-off): the step is cut
 MIN_JACOBIAN = 1e-8
+#: the residual's reference never falls below this times the largest diagonal entry of
+#: the tangent times |u| [N]: what round-off leaves of the internal force where the
+#: solution carries no stress (a prescribed rigid rotation), so that it converges
+ROUNDOFF = 1e-8
 
 
 class SolverError(RuntimeError):
@@ -392,6 +398,7 @@ class Solver:
         k_c = self.stiffness(self.tangent, self.sigma, self.u, t1)
         r_c = macro.internal_force(self.sigma, self.u) - self.f_ext(t1)
         du = linear_solve(k_c, -r_c, sup.dofs, du, self._tie)
+        k_max = float(np.abs(k_c.diagonal()).max()) if k_c.shape[0] else 0.0
         growth = 0
         last = math.inf
         prev, omega = None, 1.0
@@ -413,7 +420,10 @@ class Solver:
             f_ext = self.f_ext(t1, u1)
             r = f_int - f_ext
             rn = float(np.linalg.norm(free_part(r, self.free, self._tie)))
-            ref = max(float(np.linalg.norm(f_int)), float(np.linalg.norm(f_ext)), 1e-300)
+            # a stress-free solution (a prescribed rigid rotation) has no force to
+            # compare with: the floor is what round-off leaves of k |u|
+            ref = max(float(np.linalg.norm(f_int)), float(np.linalg.norm(f_ext)),
+                      ROUNDOFF * k_max * float(np.linalg.norm(u1)), 1e-300)
             if not math.isfinite(rn):
                 raise _NotConverged("non-finite residual")
             dd = linear_solve(self.stiffness(c, sig, u1, t1), -r, sup.dofs,

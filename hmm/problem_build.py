@@ -25,6 +25,7 @@ from .conditions import (
     Traction,
     cut_boundary,
     external_forces,
+    free_rigid_motions,
     supports,
     vertex_at,
 )
@@ -137,6 +138,12 @@ def build_loads(problem, macro):
     except ConditionError as err:
         where = f"[[{err.kind}]]" + ("" if err.index is None else f" #{err.index + 1}")
         raise SceneError(f"{problem['source']}: {where} {err.reason}") from None
+    free = free_rigid_motions(macro, sup)
+    if free:
+        raise SceneError(f"{problem['source']}: the supports ([[dirichlet]], [[platen]], "
+                         f"[[periodic]]) leave {' and '.join(free)} free: no load step "
+                         f"can converge; hold more components (a [[dirichlet]] at a "
+                         f"boundary or a point)")
     loads = [Pressure(p["boundary"], p["value"], p["ramp"], p["follower"])
              for p in problem["pressure"]]
     loads += [Traction(t["boundary"], tuple(t["value"]), t["per"])

@@ -184,8 +184,8 @@ def test_hmm_run_dry_run_reads_a_packing_file_of_the_wrong_dimension(tmp_path):
     problem = copy.deepcopy(PACKED)
     problem["mesh"] = {"dim": 3, "element": "hex1", "size": [1.0, 1.0, 1.0],
                        "cells": [1, 1, 1]}
-    problem["dirichlet"] = [{"boundary": "bottom", "component": "z"},
-                            {"boundary": "top", "component": "z", "value": -0.01}]
+    problem["dirichlet"] = [{"boundary": "bottom", "component": c} for c in "xyz"]
+    problem["dirichlet"].append({"boundary": "top", "component": "z", "value": -0.01})
     (tmp_path / "problem.toml").write_text(to_toml(problem))
     write_rve_packing(tmp_path / "packing.h5")
     assert agree("hmm", ["run", "problem.toml", "-o", "out"], tmp_path,

@@ -46,6 +46,16 @@ def sweep(seeds=None):
     return SWEEP + f'"packing.seed" = {list(seeds)}\n'
 
 
+def default_signals():
+    """In a child before it runs: SIGINT and SIGTERM back to their default handlers.
+
+    A shell starts a background job (``make test &``, a CI runner) with SIGINT
+    ignored, and the child inherits that; the commands rightly leave an ignored
+    signal ignored, so a test that sends one must undo it first."""
+    for s in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(s, signal.SIG_DFL)
+
+
 class Job:
     """``PREFIX python -m hmm ARGS`` in ``cwd``, its stderr collected as it comes.
 
@@ -60,7 +70,8 @@ class Job:
         self.proc = subprocess.Popen([*prefix, sys.executable, "-m", "hmm", *args],
                                      cwd=cwd, env=env, stdin=subprocess.DEVNULL,
                                      stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                     text=True, start_new_session=bool(prefix))
+                                     text=True, start_new_session=bool(prefix),
+                                     preexec_fn=default_signals)
         self.lines = []
         self.reader = threading.Thread(target=self._read, daemon=True)
         self.reader.start()

@@ -11,6 +11,7 @@ import time
 import h5py
 import numpy as np
 import pytest
+from signal_jobs import default_signals
 from test_cli import _insert_scene, assert_one_line_error, run_cli, write_scene
 
 STEPS = 1200
@@ -83,7 +84,8 @@ def _start(path, out):
     """``dem run`` of a long scene in a subprocess, once it is writing frames."""
     proc = subprocess.Popen([sys.executable, "-m", "dem", "run", str(path), "-o",
                              str(out), "--no-progress"], text=True, env=ENV,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            preexec_fn=default_signals)
     deadline = time.monotonic() + 240.0
     while not (out / "scene.h5.tmp").exists() and time.monotonic() < deadline:
         time.sleep(0.2)

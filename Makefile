@@ -40,12 +40,12 @@ test: $(STAMP)
 	$(MAKE) test-mpi
 
 test-shapes: $(STAMP)
-	$(PYTEST) --basetemp="$$(mktemp -d)/t" $(SHAPE_TESTS)
+	$(PYTEST) --durations=8 --basetemp="$$(mktemp -d)/t" $(SHAPE_TESTS)
 	$(PYTEST) --basetemp="$$(mktemp -d)/t" $(DOC_TESTS) -k "not ($(DOC_REST))"
 	$(PYTEST) --doctest-modules dem hmm
 
 test-rest: $(STAMP)
-	$(PYTEST) --basetemp="$$(mktemp -d)/t" tests --ignore=tests/mpi \
+	$(PYTEST) --durations=8 --basetemp="$$(mktemp -d)/t" tests --ignore=tests/mpi \
 		$(addprefix --ignore=,$(SHAPE_TESTS) $(DOC_TESTS))
 	$(PYTEST) --basetemp="$$(mktemp -d)/t" $(DOC_TESTS) -k "$(DOC_REST)"
 

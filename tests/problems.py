@@ -1,5 +1,6 @@
-"""Small problem files shared by the tests of ``hmm run`` (run, readers, signals,
-environment failures): linear-elastic micro models, so a run takes a second."""
+"""Small input files shared by the tests: problem files of ``hmm run`` (run, readers,
+signals, environment failures) with linear-elastic micro models, so a run takes a
+second; sweeps of ``hmm batch`` (batch, MPI batch, signals) of small disk packings."""
 
 
 def elastic_problem(steps, cells=(2, 2), checkpoint_every=None):
@@ -34,3 +35,25 @@ steps = {steps}
     if checkpoint_every is not None:
         text += f"\n[output]\ncheckpoint_every = {checkpoint_every}\n"
     return text
+
+
+def sweep_text(count, seed, axial_strain, increment, confining="[5e4, 1e5, 2e5]"):
+    """A sweep of drained biaxial tests on ``count``-disk packings, one experiment per
+    confining pressure [Pa] of ``confining`` (the TOML array, as written)."""
+    return f"""
+[base.packing]
+count = {count}
+radius = [0.8e-3, 1.2e-3]
+p0 = 1e5
+seed = {seed}
+[base.contact]
+law = "linear"
+kn = 1e8
+kt = 5e7
+mu = 0.5
+[base.test]
+axial_strain = {axial_strain}
+increment = {increment}
+[sweep.grid]
+"test.confining" = {confining}
+"""

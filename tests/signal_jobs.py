@@ -10,7 +10,7 @@ import threading
 import time
 from pathlib import Path
 
-from problems import elastic_problem
+from problems import elastic_problem, sweep_text
 
 ROOT = Path(__file__).resolve().parents[1]
 LIMIT_S = 5.0  # the promise: the whole job ends within this after the signal
@@ -20,23 +20,7 @@ START_S = 240.0  # a watchdog for the job's start (imports, a cold numba cache)
 PROBLEM = elastic_problem(5000, checkpoint_every=1)
 
 #: experiments of 30 disks, 40 increments each: seconds each, far from done
-SWEEP = """
-[base.packing]
-count = 30
-radius = [0.8e-3, 1.2e-3]
-p0 = 1e5
-seed = 2
-[base.contact]
-law = "linear"
-kn = 1e8
-kt = 5e7
-mu = 0.5
-[base.test]
-axial_strain = 0.2
-increment = 0.005
-[sweep.grid]
-"test.confining" = [5e4, 1e5, 2e5, 4e5]
-"""
+SWEEP = sweep_text(30, 2, 0.2, 0.005, "[5e4, 1e5, 2e5, 4e5]")
 
 
 def sweep(seeds=None):

@@ -10,6 +10,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from problems import sweep_text
 
 from dem.io.schema import SceneError, schema_markdown
 from hmm import batch, queue
@@ -19,23 +20,7 @@ from hmm.cli import cmd_batch
 ROOT = Path(__file__).resolve().parents[2]
 
 #: 3 experiments of 36 disks, 2 increments each (about a second each)
-SWEEP = """
-[base.packing]
-count = 36
-radius = [0.8e-3, 1.2e-3]
-p0 = 1e5
-seed = 1
-[base.contact]
-law = "linear"
-kn = 1e8
-kt = 5e7
-mu = 0.5
-[base.test]
-axial_strain = 0.02
-increment = 0.01
-[sweep.grid]
-"test.confining" = [5e4, 1e5, 2e5]
-"""
+SWEEP = sweep_text(36, 1, 0.02, 0.01)
 
 _RUN_ONE = queue.run_one
 

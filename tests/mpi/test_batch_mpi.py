@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from problems import sweep_text
 
 MPI = pytest.importorskip("mpi4py.MPI")
 
@@ -28,23 +29,7 @@ COMM = MPI.COMM_WORLD
 HANG_S = 300  # far beyond any test here: a watchdog, not a benchmark
 
 #: 3 experiments of 30 disks, 2 increments each
-SWEEP = """
-[base.packing]
-count = 30
-radius = [0.8e-3, 1.2e-3]
-p0 = 1e5
-seed = 2
-[base.contact]
-law = "linear"
-kn = 1e8
-kt = 5e7
-mu = 0.5
-[base.test]
-axial_strain = 0.02
-increment = 0.01
-[sweep.grid]
-"test.confining" = [5e4, 1e5, 2e5]
-"""
+SWEEP = sweep_text(30, 2, 0.02, 0.01)
 
 
 @pytest.fixture

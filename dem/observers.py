@@ -14,6 +14,8 @@ the step on which the trigger fires. Observers never change the state.
 import numpy as np
 
 from .contact.laws import contact_energy, contact_stiffness
+from .contact.rolling import COL_MOMENT, rolling_energy
+from .contact.rolling import N_PARAM as ROLLING_PARAMS
 from .rotation import body_frame, world_frame
 from .shapes import Shape
 
@@ -98,12 +100,14 @@ def contact_summary(sim):
     (d,) the vector from the centre of i to the centre of j, periodic image included
     (sphere-sphere) or to the contact point times two (walls), ``force`` (d,) on j [N],
     ``arm_i``/``arm_j`` (d,) from each centre to the contact point (``arm_j`` zero for
-    walls), ``kn``/``kt`` the law's tangent stiffness [N/m], ``is_wall`` bool.
+    walls), ``kn``/``kt`` the law's tangent stiffness [N/m], ``is_wall`` bool, and
+    ``moment`` (r,) the rolling and twisting moment on j [N m] (2D: about z; i gets the
+    opposite; zero without rolling resistance, :mod:`dem.contact.rolling`).
     """
     b, nl = sim.bodies, sim.neighbors
     d = b.dim
     out = {k: [] for k in ("i", "j", "normal", "overlap", "x1", "x2", "branch", "force",
-                           "arm_i", "arm_j", "kn", "kt", "is_wall")}
+                           "arm_i", "arm_j", "kn", "kt", "is_wall", "moment")}
     if sim.shaped:
         _shape_summary(sim, out)
         return _concatenate(out, d)
@@ -130,6 +134,7 @@ def contact_summary(sim):
         out["arm_j"].append(-(rj - 0.5 * ov)[:, None] * n)
         out["kn"].append(kn), out["kt"].append(kt)
         out["is_wall"].append(np.zeros(i.size, bool))
+        out["moment"].append(_moments(sim, sim.pair_state.hist[t], 1.0))
     wp = nl.wall_pairs
     if wp.shape[0]:
         i, w = wp[:, 0], wp[:, 1]
@@ -150,13 +155,24 @@ def contact_summary(sim):
         out["arm_i"].append(arm), out["arm_j"].append(np.zeros_like(arm))
         out["kn"].append(kn), out["kt"].append(kt)
         out["is_wall"].append(np.ones(i.size, bool))
+        # the wall rows keep the moment on the body: the wall gets the opposite
+        out["moment"].append(_moments(sim, sim.wall_state.whist[t], -1.0))
     return _concatenate(out, d)
 
 
+def _moments(sim, hist, sign):
+    """The rolling moments [N m] recorded in history rows (zeros without rolling)."""
+    r = 1 if sim.dim == 2 else 3
+    if not sim.model.rolling:
+        return np.zeros((hist.shape[0], r))
+    return sign * hist[:, COL_MOMENT:COL_MOMENT + r]
+
+
 def _concatenate(out, d):
+    r = 1 if d == 2 else 3
     shapes = {"i": (0,), "j": (0,), "normal": (0, d), "overlap": (0,), "x1": (0, d),
               "x2": (0, d), "branch": (0, d), "force": (0, d), "arm_i": (0, d),
-              "arm_j": (0, d), "kn": (0,), "kt": (0,), "is_wall": (0,)}
+              "arm_j": (0, d), "kn": (0,), "kt": (0,), "is_wall": (0,), "moment": (0, r)}
     dtypes = {"i": np.int64, "j": np.int64, "is_wall": bool}
     return {k: (np.concatenate(v) if v else np.zeros(shapes[k], dtypes.get(k, np.float64)))
             for k, v in out.items()}
@@ -183,6 +199,7 @@ def _shape_summary(sim, out):
         out["arm_i"].append(c - b.pos[i]), out["arm_j"].append(c - pj)
         out["kn"].append(kn), out["kt"].append(kt)
         out["is_wall"].append(np.zeros(i.size, bool))
+        out["moment"].append(np.zeros((i.size, 1 if d == 2 else 3)))
     wp = nl.wall_pairs
     if wp.shape[0]:
         t = sim.shape_wall_state.wgeom[:, 0] > 0.0
@@ -199,6 +216,7 @@ def _shape_summary(sim, out):
         out["arm_i"].append(arm), out["arm_j"].append(np.zeros_like(arm))
         out["kn"].append(kn), out["kt"].append(kt)
         out["is_wall"].append(np.ones(i.size, bool))
+        out["moment"].append(np.zeros((i.size, 1 if d == 2 else 3)))
 
 
 def _stiffness(sim, bucket, ov, r_eff, ma, mb):
@@ -248,6 +266,28 @@ def stress_and_tangent(sim, volume, ids=None, kinetic=True):
     proj = eye[None] - np.einsum("ci,ck->cik", n, n)
     ct = np.einsum("c,cik,cj,cl->ijkl", kt, proj, branch, branch)
     return sig, (cn + ct) / volume
+
+
+def couple_stress(sim, volume, ids=None):
+    """Homogenised couple stress (r, d) [N/m] of the contact moments
+    (rolling and twisting resistance, :mod:`dem.contact.rolling`).
+
+    The moments' counterpart of :func:`stress_and_tangent`'s stress:
+    ``mu = 1/V sum_p sum_c m_c (x) a_c`` over the bodies ``p`` of the collection, with
+    ``m_c`` the moment on ``p`` at contact ``c`` and ``a_c`` its arm; for a sphere pair
+    inside the collection this is ``-m (x) l``, ``m`` the moment on j and ``l`` the
+    branch vector from i to j. ``mu[a, b]``: moment component ``a`` (2D: z only) carried
+    across planes normal to ``b``, per unit area. Zero without rolling resistance.
+    """
+    sim.prime()
+    b = sim.bodies
+    c = contact_summary(sim)
+    inside = np.ones(b.n, bool) if ids is None else np.isin(np.arange(b.n), ids)
+    mi = inside[c["i"]]
+    mj = inside[c["j"]] & ~c["is_wall"]
+    mu = -np.einsum("ca,cb->ab", c["moment"][mi], c["arm_i"][mi])
+    mu += np.einsum("ca,cb->ab", c["moment"][mj], c["arm_j"][mj])
+    return mu / volume
 
 
 class CollectionTracker(_Series):
@@ -305,7 +345,8 @@ def angular_momentum(bodies, origin=None):
 
 
 def elastic_energy(sim):
-    """Elastic energy [J] stored in the contacts (normal and tangential springs)."""
+    """Elastic energy [J] stored in the contacts (normal, tangential, rolling and
+    twisting springs; the rolling ones at the current normal stiffness)."""
     sim.prime()
     b, nl = sim.bodies, sim.neighbors
     e = 0.0
@@ -344,6 +385,12 @@ def elastic_energy(sim):
             r_eff = b.radius[i]
         e += contact_energy(law.code, ov, np.ascontiguousarray(r_eff), tab, b.mat_id[i],
                             b.mat_id[j], hist, np.flatnonzero(ov > 0.0))
+        if sim.model.rolling:  # the rolling and twisting springs
+            t = ov > 0.0
+            ma, mb = b.mat_id[i][t], b.mat_id[j][t]
+            kn = _stiffness(sim, bucket, ov[t], r_eff[t], ma, mb)[0]
+            e += rolling_energy(tab[ma, mb, tab.shape[2] - ROLLING_PARAMS:], hist[t], kn,
+                                r_eff[t])
     return float(e)
 
 

@@ -48,6 +48,7 @@ from .boundary import PeriodicCell, cell_map, load_steps, matrix_root
 from .contact.laws import Law, law_from_spec
 from .rve_measure import measure_periodic
 from .limits import check_particle_scales
+from .observers import couple_stress
 from .simulation import Simulation, SimulationError
 from .timestep import quasi_static_dt
 from .packings import loose_cloud, particle_radii, shape_bodies, solid_volume
@@ -240,7 +241,9 @@ class RVE:
         measures of the packing, from the current state (a dict).
 
         One compiled pass over the contacts (:func:`dem.rve_measure.measure_periodic`)
-        into arrays kept with the RVE; the returned arrays are fresh copies.
+        into arrays kept with the RVE; the returned arrays are fresh copies. A law with
+        rolling resistance adds ``couple_stress`` (r, d) [N/m]
+        (:func:`dem.observers.couple_stress`).
         """
         sim = self.sim
         sim.prime()
@@ -265,6 +268,8 @@ class RVE:
                "void_ratio": (self.volume - vs) / vs}
         if tangent:
             out["tangent"] = cmat.copy()
+        if sim.model.rolling:  # the contact moments' couple stress
+            out["couple_stress"] = couple_stress(sim, self.volume)
         return out
 
     def stress(self):

@@ -162,7 +162,8 @@ class Simulation(ShapeScene):
             self._shape_setup(periodic)
         else:
             self._kernel = stepper(self.dim, model.kind("pp").code, model.kind("pw").code,
-                                   periodic=periodic, deform=self.cell is not None)
+                                   periodic=periodic, deform=self.cell is not None,
+                                   rolling=model.rolling)
         d = self.dim
         self._lgrad = self.cell.lgrad if self.cell is not None else np.zeros((d, d))
         self._cellref = np.zeros((2, d, d))  # H^-1 at the Verlet build, at the inner list
@@ -217,7 +218,7 @@ class Simulation(ShapeScene):
         """Rows of the state bundles: pairs, wall pairs and bodies."""
         nl = self.neighbors
         return {"pair": nl.pairs.shape[0], "wall": nl.wall_pairs.shape[0],
-                "body": self.bodies.n}
+                "body": self.bodies.n, "hist": self.model.n_hist}
 
     def _index(self):
         n, nl = self.bodies.n, self.neighbors

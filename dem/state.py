@@ -360,7 +360,8 @@ class Bodies:
 class Column(NamedTuple):
     """How one array of a state bundle is shaped: rows (``"pair"``, ``"wall"`` or
     ``"body"``), trailing shape (ints and the names ``"d"``, the dimension, ``"r"``, the
-    rotational degrees of freedom, ``"2r"``, twice those), dtype, and what it holds."""
+    rotational degrees of freedom, ``"2r"``, twice those, ``"h"``, the contact model's
+    history width ``counts["hist"]``, 3 if not given), dtype, and what it holds."""
 
     rows: str
     tail: tuple
@@ -368,8 +369,10 @@ class Column(NamedTuple):
     doc: str
 
     def shape(self, counts, dim):
-        """The array's shape for ``counts`` {"pair": m, "wall": mw, "body": n}."""
-        sizes = {"d": dim, "r": n_rot(dim), "2r": 2 * n_rot(dim)}
+        """The array's shape for ``counts`` {"pair": m, "wall": mw, "body": n, and
+        optionally "hist": the history width}."""
+        sizes = {"d": dim, "r": n_rot(dim), "2r": 2 * n_rot(dim),
+                 "h": counts.get("hist", 3)}
         return (counts[self.rows], *(sizes.get(t, t) for t in self.tail))
 
 
@@ -414,7 +417,8 @@ class PairState(NamedTuple):
     touch: np.ndarray
     fpair: np.ndarray
 
-    COLUMNS = (Column("pair", (3,), np.float64, "tangential spring [m] (law history)"),
+    COLUMNS = (Column("pair", ("h",), np.float64,
+                      "law history: tangential spring [m], then any rolling state"),
                Column("pair", (), np.uint8, "1 while the pair touches"),
                Column("pair", ("d",), np.float64, "contact force on the first body [N]"))
 
@@ -427,7 +431,8 @@ class WallState(NamedTuple):
     wforce: np.ndarray
     wtorque: np.ndarray
 
-    COLUMNS = (Column("wall", (3,), np.float64, "tangential spring [m] (law history)"),
+    COLUMNS = (Column("wall", ("h",), np.float64,
+                      "law history: tangential spring [m], then any rolling state"),
                Column("wall", ("d",), np.float64, "contact force on the body [N]"),
                Column("wall", ("r",), np.float64, "contact torque on the body [N m]"))
 

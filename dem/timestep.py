@@ -28,8 +28,12 @@ PACKING_FREQUENCY_RATIO = 2.0
 #: its contacts at once, sqrt(40/7) in 3D (fcc: 16 kt r^2 against I = 0.4 m r^2, where
 #: the pair has 7 kt / m) and 2 in 2D (hexagonal: 12 kt r^2 against 0.5 m r^2 and
 #: 6 kt / m); the lattices' stiffness matrices give the same (tests/test_stability.py)
+#: Rolling springs (:mod:`dem.contact.rolling`) act on relative rotations only: a body
+#: turning against all its z neighbours loads z springs at twice the pair's rate,
+#: sqrt(z) times the pair's frequency at most (z = 12 fcc, 6 hexagonal)
 PACKING_RATIOS = {"normal": {2: PACKING_FREQUENCY_RATIO, 3: PACKING_FREQUENCY_RATIO},
-                  "tangential": {2: 2.0, 3: math.sqrt(40.0 / 7.0)}}
+                  "tangential": {2: 2.0, 3: math.sqrt(40.0 / 7.0)},
+                  "rolling": {2: math.sqrt(6.0), 3: math.sqrt(12.0)}}
 
 
 def damped_stability(zeta, local_damping=0.0):

@@ -24,6 +24,8 @@ import math
 import numpy as np
 
 from .._jit import kernel
+from .rolling import N_HIST as N_HIST_ROLLING
+from .rolling import as_rolling
 
 N_HIST = 3  # tangential spring vector
 
@@ -146,6 +148,20 @@ def apply_law(code, ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, 
     return law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt)
 
 
+@kernel(inline=True)
+def normal_stiffness(code, ov, r_eff, p, a, b):
+    """The law's normal tangent stiffness [N/m] of a contact (a compile-time ``code``)."""
+    if code == 0:
+        return p[a, b, 0]
+    return 2.0 * p[a, b, 0] * math.sqrt(r_eff * ov)
+
+
+@kernel(inline=True)
+def row_size(code):
+    """Length of the law's own parameter row: the rolling parameters follow it."""
+    return 6 if code == 0 else 4
+
+
 @kernel
 def contact_stiffness(code, ov, r_eff, p, ma, mb, kn_out, kt_out):
     """Tangent stiffnesses [N/m] of many contacts of law ``code`` (observers, not steps)."""
@@ -188,11 +204,31 @@ class Law:
     force = None
     stiffness = None
     energy = None
-    n_hist = N_HIST
+    #: rolling resistance (:class:`~dem.contact.rolling.Rolling`), or None
+    rolling = None
+
+    def _set_rolling(self, rolling):
+        self.rolling = as_rolling(rolling)
+        if self.rolling is not None:
+            self._args["rolling"] = self.rolling.spec()
+
+    @property
+    def n_hist(self):
+        """Columns of a contact's history row: the tangential spring, and the rolling
+        state when the law has rolling resistance."""
+        return N_HIST if self.rolling is None else N_HIST_ROLLING
 
     def row(self):
         """The pair-parameter row the kernels read (float64 array)."""
         raise NotImplementedError
+
+    def full_row(self, rolling):
+        """:meth:`row`, followed by the rolling parameters when ``rolling`` (zeros for a
+        law without rolling resistance in a scene where others have it)."""
+        if not rolling:
+            return self.row()
+        extra = self.rolling.row() if self.rolling is not None else [0.0] * 5
+        return np.concatenate([self.row(), extra])
 
     def critical_stiffness(self, r_ref):
         """Largest normal stiffness [N/m] a contact of reference radius ``r_ref`` reaches."""
@@ -250,6 +286,8 @@ class LinearSpring(Law):
         Normal coefficient of restitution in (0, 1]; adds the damping ratio
         ``zeta = -ln e / sqrt(pi^2 + ln^2 e)`` so that a binary collision rebounds
         with ``e`` whatever the masses (LAMMPS/LIGGGHTS convention).
+    rolling : Rolling or dict, optional
+        Rolling (and twisting) resistance (:class:`~dem.contact.rolling.Rolling`).
 
     Examples
     --------
@@ -263,7 +301,8 @@ class LinearSpring(Law):
     stiffness = staticmethod(stiffness_linear)
     energy = staticmethod(energy_linear)
 
-    def __init__(self, kn, kt=0.0, mu=0.0, gamma_n=0.0, gamma_t=0.0, restitution=1.0):
+    def __init__(self, kn, kt=0.0, mu=0.0, gamma_n=0.0, gamma_t=0.0, restitution=1.0,
+                 rolling=None):
         self.kn = _check("kn", kn, strict=True)
         self.kt = _check("kt", kt)
         self.mu = _check("mu", mu)
@@ -276,6 +315,7 @@ class LinearSpring(Law):
         self.zeta = -math.log(e) / math.sqrt(math.pi**2 + math.log(e) ** 2)
         self._args = {"kn": self.kn, "kt": self.kt, "mu": self.mu, "gamma_n": self.gamma_n,
                       "gamma_t": self.gamma_t, "restitution": e}
+        self._set_rolling(rolling)
 
     def row(self):
         return np.array([self.kn, self.kt, self.gamma_n, self.gamma_t, self.zeta, self.mu])
@@ -316,6 +356,8 @@ class HertzMindlin(Law):
     overlap_ref : float
         Overlap, as a fraction of the radius, at which the critical time step takes its
         stiffness (default 0.05).
+    rolling : Rolling or dict, optional
+        Rolling (and twisting) resistance (:class:`~dem.contact.rolling.Rolling`).
     """
 
     code = 1
@@ -323,7 +365,7 @@ class HertzMindlin(Law):
     stiffness = staticmethod(stiffness_hertz_mindlin)
     energy = staticmethod(energy_hertz_mindlin)
 
-    def __init__(self, young, poisson, restitution, mu, overlap_ref=0.05):
+    def __init__(self, young, poisson, restitution, mu, overlap_ref=0.05, rolling=None):
         e1, e2 = np.broadcast_to(np.asarray(young, dtype=float), (2,))
         n1, n2 = np.broadcast_to(np.asarray(poisson, dtype=float), (2,))
         for name, v in (("young", e1), ("young", e2)):
@@ -341,6 +383,7 @@ class HertzMindlin(Law):
         self.overlap_ref = _check("overlap_ref", overlap_ref, strict=True)
         self._args = {"young": [float(e1), float(e2)], "poisson": [float(n1), float(n2)],
                       "restitution": e, "mu": self.mu, "overlap_ref": self.overlap_ref}
+        self._set_rolling(rolling)
 
     def row(self):
         return np.array([self.e_star, self.g_star, self.beta, self.mu])

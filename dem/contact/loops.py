@@ -47,7 +47,7 @@ from .sphere_contacts import (N_BLOCKS, _compact_inner, _near, _scatter_pair, _s
 _STEPPERS = {}
 
 
-def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
+def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False):
     """The compiled multi-step kernel for ``dim`` (2 or 3) and two law codes.
 
     ``law_pp``/``law_pw`` are law codes (a law class's ``code``: 0 linear, 1
@@ -57,13 +57,15 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
     are carried by the affine field and ``cellref`` (2, d, d) holds H^-1 at the
     Verlet build and at the inner list's making; an orthogonal periodic box passes
     ``is_cell`` false and a zero ``lgrad``, and every affine term adds an exact zero.
+    ``rolling`` compiles in rolling resistance (:mod:`dem.contact.rolling`), whose
+    parameters follow the law's in the parameter tables.
     Only integers are captured, so the kernel caches on disk; the branches not taken
     fold away at compile time.
     """
-    key = (int(dim), int(law_pp), int(law_pw), bool(periodic or deform))
+    key = (int(dim), int(law_pp), int(law_pw), bool(periodic or deform), bool(rolling))
     if key in _STEPPERS:
         return _STEPPERS[key]
-    DIM, PP, PW, PERIODIC = key
+    DIM, PP, PW, PERIODIC, ROLL = key
     DEFORM = PERIODIC
 
     @kernel(parallel=True)
@@ -173,16 +175,17 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
                 for q in range(n_tot):
                     k = inner[q]
                     (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
-                        k, DIM, PP, PERIODIC, DEFORM, pos, vel, ang_vel, radius, inv_mass,
-                        mat_id, hmat, rate, turns, spin, pairs, img, touch, hist,
-                        params_pp, hdt, overlap_limit, status_out)
+                        k, DIM, PP, ROLL, PERIODIC, DEFORM, pos, vel, ang_vel, radius,
+                        inv_mass, inv_inertia, mat_id, hmat, rate, turns, spin, pairs, img,
+                        touch, hist, params_pp, hdt, overlap_limit, status_out)
                     if on:
                         _scatter_pair(k, DIM, pairs[k, 0], pairs[k, 1], fx, fy, fz, tix,
                                       tiy, tiz, tjx, tjy, tjz, fpair, force, torque)
                 for k in range(mw):
                     (on, fx, fy, fz, tx, ty, tz, power) = _sphere_wall(
-                        k, DIM, PW, pos, vel, ang_vel, radius, inv_mass, mat_id, normal,
-                        wpairs, whist, params_pw, hdt, overlap_limit, status_out)
+                        k, DIM, PW, ROLL, pos, vel, ang_vel, radius, inv_mass, inv_inertia,
+                        mat_id, normal, wpairs, whist, params_pw, hdt, overlap_limit,
+                        status_out)
                     if not on:
                         for a in range(DIM):  # wall reactions sum every wall pair
                             wforce[k, a] = 0.0
@@ -214,9 +217,9 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
                     for q in range(blk_start[blk], blk_start[blk + 1]):
                         k = inner[q]
                         (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
-                            k, DIM, PP, PERIODIC, DEFORM, pos, vel, ang_vel, radius,
-                            inv_mass, mat_id, hmat, rate, turns, spin, pairs, img, touch,
-                            hist, params_pp, hdt, overlap_limit, status_out)
+                            k, DIM, PP, ROLL, PERIODIC, DEFORM, pos, vel, ang_vel, radius,
+                            inv_mass, inv_inertia, mat_id, hmat, rate, turns, spin, pairs,
+                            img, touch, hist, params_pp, hdt, overlap_limit, status_out)
                         if on:
                             _scatter_pair(k, DIM, pairs[k, 0], pairs[k, 1], fx, fy, fz,
                                           tix, tiy, tiz, tjx, tjy, tjz, fpair, force,
@@ -226,9 +229,9 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
                 for q in numba.prange(n_int, n_tot):
                     k = inner[q]
                     (on, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz) = _sphere_pair(
-                        k, DIM, PP, PERIODIC, DEFORM, pos, vel, ang_vel, radius, inv_mass,
-                        mat_id, hmat, rate, turns, spin, pairs, img, touch, hist,
-                        params_pp, hdt, overlap_limit, status_out)
+                        k, DIM, PP, ROLL, PERIODIC, DEFORM, pos, vel, ang_vel, radius,
+                        inv_mass, inv_inertia, mat_id, hmat, rate, turns, spin, pairs, img,
+                        touch, hist, params_pp, hdt, overlap_limit, status_out)
                     si = slot[k, 0]
                     sj = slot[k, 1]
                     if not on:
@@ -259,8 +262,9 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False):
                 # ---- 4. sphere-wall contacts, parallel over pairs
                 for k in numba.prange(mw):
                     (on, fx, fy, fz, tx, ty, tz, power) = _sphere_wall(
-                        k, DIM, PW, pos, vel, ang_vel, radius, inv_mass, mat_id, normal,
-                        wpairs, whist, params_pw, hdt, overlap_limit, status_out)
+                        k, DIM, PW, ROLL, pos, vel, ang_vel, radius, inv_mass, inv_inertia,
+                        mat_id, normal, wpairs, whist, params_pw, hdt, overlap_limit,
+                        status_out)
                     # written even when not touching (zeros): the gather reads every row
                     wforce[k, 0] = fx
                     wforce[k, 1] = fy

@@ -10,7 +10,8 @@ import math
 
 import numpy as np
 
-from .laws import Law
+from .laws import N_HIST, Law
+from .rolling import N_HIST as N_HIST_ROLLING
 
 
 class ContactModel:
@@ -36,6 +37,11 @@ class ContactModel:
     def __init__(self, law, wall_law=None):
         self.laws = {"pp": self._normalise(law, "law"),
                      "pw": self._normalise(law if wall_law is None else wall_law, "wall_law")}
+        #: whether any law has rolling resistance: the loop then carries it for every
+        #: contact (laws without it get zero parameters), in longer history rows
+        self.rolling = any(v.rolling is not None for bucket in self.laws.values()
+                           for v in bucket.values())
+        self.n_hist = N_HIST_ROLLING if self.rolling else N_HIST
 
     @staticmethod
     def _normalise(law, name):
@@ -68,18 +74,21 @@ class ContactModel:
     def table(self, bucket, n_mat):
         """Parameter table (n_mat, n_mat, n_param) float64; NaN rows where no law is set."""
         proto = next(iter(self.laws[bucket].values()))
-        t = np.full((n_mat, n_mat, proto.row().size), np.nan)
+        t = np.full((n_mat, n_mat, proto.full_row(self.rolling).size), np.nan)
         for a in range(n_mat):
             for b in range(n_mat):
                 law = self.law_for(bucket, a, b)
                 if law is not None:
-                    t[a, b] = law.row()
+                    t[a, b] = law.full_row(self.rolling)
         return t
 
     def check(self, bodies):
         """Fail at set-up, naming every material pair present that has no law."""
         from ..shapes import Shape
 
+        if self.rolling and bodies.has_shapes:
+            raise ValueError("rolling resistance acts between spheres and disks (and "
+                             "walls), not on level-set shapes")
         sph = np.unique(bodies.mat_id[bodies.kind != Shape.PLANE])
         wal = np.unique(bodies.mat_id[bodies.kind == Shape.PLANE])
         missing = [("particle-particle", a, b) for a in sph for b in sph
@@ -108,6 +117,9 @@ class ContactModel:
                 zeta_n, zeta_t = (law.damping_ratios(0.5 * m_min, rot)
                                   if math.isfinite(m_min) else (0.0, 0.0))
                 out += [("normal", kn, zeta_n), ("tangential", rot * ks, zeta_t)]
+                if law.rolling is not None:  # a body turning against the rolling spring
+                    out.append(("rolling", law.rolling.stiffness_factor(bodies.dim) * kn,
+                                law.rolling.eta_roll))
         return out
 
     def max_damping_ratio(self, bodies, m_min):

@@ -18,14 +18,23 @@ import numpy as np
 from .._jit import kernel
 from ..status import OVERLAP
 from .kinematics import add_strain_rate, turn_spring
-from .laws import apply_law
+from .laws import apply_law, normal_stiffness, row_size
+from .rolling import pair_inertia, rolling_moment, turn_rolling
 
 
 @kernel(inline=True)
-def _sphere_pair(k, dim, code, periodic, deform, pos, vel, ang_vel, radius, inv_mass,
-                 mat_id, hmat, rate, turns, spin, pairs, img, touch, hist, params, dt,
-                 overlap_limit, status_out):
-    """Contact k of the sphere-sphere list.
+def _forget(hist, k):
+    """Contact k opened: its history ends."""
+    for c in range(hist.shape[1]):
+        hist[k, c] = 0.0
+
+
+@kernel(inline=True)
+def _sphere_pair(k, dim, code, roll, periodic, deform, pos, vel, ang_vel, radius, inv_mass,
+                 inv_inertia, mat_id, hmat, rate, turns, spin, pairs, img, touch, hist,
+                 params, dt, overlap_limit, status_out):
+    """Contact k of the sphere-sphere list (``roll``: with rolling resistance,
+    :mod:`dem.contact.rolling`).
 
     Returns ``(touching, fx, fy, fz, tix, tiy, tiz, tjx, tjy, tjz)``: the force on j
     (i gets the opposite) and the torques on i and j (2D: the z components only).
@@ -54,9 +63,7 @@ def _sphere_pair(k, dim, code, periodic, deform, pos, vel, ang_vel, radius, inv_
     if dist2 >= cut * cut:
         if touch[k]:  # the contact opened: its history ends
             touch[k] = 0
-            hist[k, 0] = 0.0
-            hist[k, 1] = 0.0
-            hist[k, 2] = 0.0
+            _forget(hist, k)
         return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     touch[k] = 1
     dist = math.sqrt(dist2)
@@ -87,23 +94,43 @@ def _sphere_pair(k, dim, code, periodic, deform, pos, vel, ang_vel, radius, inv_
         vx, vy, vz = add_strain_rate(dim, rate, dx, dy, dz, vx, vy, vz)
         if turns:
             turn_spring(dim, spin, hist, k)
+            if roll and dim == 3:
+                turn_rolling(spin, hist, k)
     r_eff = ri * rj / (ri + rj)
     m_eff = 1.0 / (inv_mass[i] + inv_mass[j])
-    fx, fy, fz = apply_law(code, ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, params,
-                           mat_id[i], mat_id[j], hist, k, dt)
+    a = mat_id[i]
+    b = mat_id[j]
+    fx, fy, fz = apply_law(code, ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, params, a, b,
+                           hist, k, dt)
     # torques: tau_i = li n x (-f), tau_j = -lj n x f
     tx = ny * fz - nz * fy
     ty = nz * fx - nx * fz
     tz = nx * fy - ny * fx
+    mx, my, mz = 0.0, 0.0, 0.0
+    if roll:  # the moment on j; i gets the opposite
+        i_r, i_w = pair_inertia(inv_mass[j], inv_inertia[j, 0], rj, inv_mass[i],
+                                inv_inertia[i, 0], ri)
+        if dim == 2:
+            wx, wy, wz = 0.0, 0.0, ang_vel[j, 0] - ang_vel[i, 0]
+        else:
+            wx = ang_vel[j, 0] - ang_vel[i, 0]
+            wy = ang_vel[j, 1] - ang_vel[i, 1]
+            wz = ang_vel[j, 2] - ang_vel[i, 2]
+        mx, my, mz = rolling_moment(
+            dim, hist, k, nx, ny, nz, wx, wy, wz,
+            normal_stiffness(code, ov, r_eff, params, a, b), fx * nx + fy * ny + fz * nz,
+            r_eff, i_r, i_w, params, a, b, row_size(code), dt)
     if dim == 2:
-        return True, fx, fy, 0.0, -li * tz, 0.0, 0.0, -lj * tz, 0.0, 0.0
-    return True, fx, fy, fz, -li * tx, -li * ty, -li * tz, -lj * tx, -lj * ty, -lj * tz
+        return True, fx, fy, 0.0, -li * tz - mz, 0.0, 0.0, -lj * tz + mz, 0.0, 0.0
+    return (True, fx, fy, fz, -li * tx - mx, -li * ty - my, -li * tz - mz, -lj * tx + mx,
+            -lj * ty + my, -lj * tz + mz)
 
 
 @kernel(inline=True)
-def _sphere_wall(k, dim, code, pos, vel, ang_vel, radius, inv_mass, mat_id, normal,
-                 wpairs, whist, params, dt, overlap_limit, status_out):
-    """Contact k of the sphere-wall list (home body: the sphere; n points into the wall).
+def _sphere_wall(k, dim, code, roll, pos, vel, ang_vel, radius, inv_mass, inv_inertia,
+                 mat_id, normal, wpairs, whist, params, dt, overlap_limit, status_out):
+    """Contact k of the sphere-wall list (home body: the sphere; n points into the wall;
+    ``roll``: with rolling resistance, :mod:`dem.contact.rolling`; walls do not turn).
 
     Returns ``(touching, fx, fy, fz, tx, ty, tz, power)``: force and torque on the
     sphere, and the power of the wall's force on it [W].
@@ -119,9 +146,7 @@ def _sphere_wall(k, dim, code, pos, vel, ang_vel, radius, inv_mass, mat_id, norm
     ri = radius[i]
     ov = ri - gap
     if ov <= 0.0:
-        whist[k, 0] = 0.0
-        whist[k, 1] = 0.0
-        whist[k, 2] = 0.0
+        _forget(whist, k)
         return False, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     if ov > overlap_limit * ri:
         status_out[0] = OVERLAP
@@ -141,12 +166,24 @@ def _sphere_wall(k, dim, code, pos, vel, ang_vel, radius, inv_mass, mat_id, norm
         vx = vwx - vel[i, 0] - (sy * nz - sz * ny)
         vy = vwy - vel[i, 1] - (sz * nx - sx * nz)
         vz = vwz - vel[i, 2] - (sx * ny - sy * nx)
+    a = mat_id[i]
+    b = mat_id[w]
     fx, fy, fz = apply_law(code, ov, nx, ny, nz, vx, vy, vz, ri, 1.0 / inv_mass[i], params,
-                           mat_id[i], mat_id[w], whist, k, dt)
+                           a, b, whist, k, dt)
     # the sphere gets -f; torque li n x (-f)
     tx = -li * (ny * fz - nz * fy)
     ty = -li * (nz * fx - nx * fz)
     tz = -li * (nx * fy - ny * fx)
+    if roll:  # the rolling moment on the sphere (home body), against its own spin
+        i_r, i_w = pair_inertia(inv_mass[i], inv_inertia[i, 0], ri, 0.0, 0.0, 0.0)
+        if dim == 2:
+            wx, wy, wz = 0.0, 0.0, ang_vel[i, 0]
+        else:
+            wx, wy, wz = ang_vel[i, 0], ang_vel[i, 1], ang_vel[i, 2]
+        mx, my, mz = rolling_moment(
+            dim, whist, k, nx, ny, nz, wx, wy, wz, normal_stiffness(code, ov, ri, params, a, b),
+            fx * nx + fy * ny + fz * nz, ri, i_r, i_w, params, a, b, row_size(code), dt)
+        tx, ty, tz = tx + mx, ty + my, tz + mz  # 2D: mx = my = 0
     power = -(fx * vwx + fy * vwy + fz * vwz)
     if dim == 2:
         return True, -fx, -fy, 0.0, tz, 0.0, 0.0, power
@@ -177,9 +214,7 @@ def _near(k, dim, periodic, pos, radius, hmat, pairs, img, touch, hist, skin_inn
         return 1
     if touch[k]:
         touch[k] = 0
-        hist[k, 0] = 0.0
-        hist[k, 1] = 0.0
-        hist[k, 2] = 0.0
+        _forget(hist, k)
     return 0
 
 

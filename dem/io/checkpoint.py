@@ -407,7 +407,8 @@ def _read_checkpoint(path, f):
                              f"0..{n - 1}")
     g = f["contacts"]
     contacts = {}
-    counts = {"pair": m, "wall": mw, "body": n}
+    counts = {"pair": m, "wall": mw, "body": n,
+              "hist": g["hist"].shape[1] if "hist" in g and g["hist"].ndim == 2 else 3}
     for _, cls in Simulation.BUNDLES[:4 if bodies.has_shapes else 2]:
         for name, col in zip(cls._fields, cls.COLUMNS, strict=True):
             if name in g:

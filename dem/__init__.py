@@ -15,6 +15,7 @@ normals point from the home body to its neighbour.
 
 from .contact.laws import Elastic, HertzMindlin, Law, LinearSpring, Viscoelastic
 from .contact.model import ContactModel
+from .meshwall import MeshWall
 from .neighbors import Box as Domain
 from .observers import (CollectionTracker, EnergyTracker, ParticleTracker, Periodic,
                         Record, kinetic_energy, stress_and_tangent)
@@ -29,7 +30,8 @@ __all__ = [
     "Bodies", "Box", "CollectionTracker", "Compound", "ConvexPolygon", "ConvexPolyhedron",
     "CustomShape",
     "ShapeScale", "ContactModel", "DT_FACTOR", "Domain", "Elastic",
-    "EnergyTracker", "HertzMindlin", "Law", "LinearSpring", "ParticleTracker", "Periodic",
+    "EnergyTracker", "HertzMindlin", "Law", "LinearSpring", "MeshWall", "ParticleTracker",
+    "Periodic",
     "Plane", "Record", "Shape", "Simulation", "SimulationError", "Sphere", "SphereRadius",
     "StateObject", "Viscoelastic", "critical_time_step", "kinetic_energy",
     "stress_and_tangent",

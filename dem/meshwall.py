@@ -250,6 +250,9 @@ class MeshWall:
         """The wall after ``dt`` [s] of its prescribed motion: turned by
         ``angular_velocity * dt`` about its centre (exactly, by Rodrigues' formula),
         then moved by ``velocity * dt``."""
+        dt = float(dt)
+        if not np.isfinite(dt):
+            raise ValueError(f"mesh wall time step must be finite, got {dt}")
         w = self.angular_velocity
         angle = float(np.linalg.norm(w)) * dt
         out = self
@@ -318,6 +321,8 @@ class MeshWall:
         :mod:`dem.meshwall_kernels`: an edge or vertex point counts once)."""
         center = _vector3(center, "sphere center")
         radius = float(radius)
+        if not (np.isfinite(radius) and radius > 0.0):
+            raise ValueError(f"sphere radius must be finite and > 0, got {radius}")
         _, cand = self.faces_near(center[None, :], radius)
         m = 8
         while True:

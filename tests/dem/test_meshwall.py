@@ -1,7 +1,14 @@
 """Triangle-mesh walls: closest points against dense sampling, one contact per shared
 edge or vertex (coplanar, ridge, fan) and two in a valley, an exact box distance and an
 infinite plane as references, the broad phase against brute force, closed meshes,
-rigid motion, files in and out, and every bad input's one-line message."""
+rigid motion, files in and out, every bad input's one-line message, and the kernels run
+as plain Python giving the same numbers."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import meshio
 import numpy as np
@@ -252,6 +259,10 @@ def test_rigid_motion_keeps_the_shape_and_moves_exactly():
     assert shifted.bounds[0, 2] == 2.0 and cube.bounds[0, 2] == 0.0
     with pytest.raises(ValueError, match="rotation"):
         cube.rotated(np.diag([1.0, 1.0, -1.0]))
+    with pytest.raises(ValueError, match="velocity"):
+        MeshWall(CUBE_VERTICES, CUBE_FACES, velocity=[1.0, np.inf, 0.0])
+    with pytest.raises(ValueError, match="radius"):
+        cube.contacts([0.5, 0.5, 1.1], -0.1)
 
 
 # ------------------------------------------------------------------ files
@@ -341,3 +352,31 @@ def test_bad_arrays_are_one_line(vertices, faces, cause):
     with pytest.raises(ValueError, match=cause) as err:
         MeshWall(vertices, faces)
     assert "\n" not in str(err.value)
+
+
+INTERPRETED = """
+import json, sys
+import numpy as np
+sys.path.insert(0, {root!r})
+from dem.meshwall import CUBE_FACES, CUBE_VERTICES, MeshWall
+wall = MeshWall(CUBE_VERTICES, CUBE_FACES).rotated([0.9, 0.1, -0.3, 0.2])
+rng = np.random.default_rng(4)
+out = []
+for c in rng.uniform(-0.3, 1.3, (40, 3)):
+    got = wall.contacts(c, 0.3)
+    out.append([a.tolist() for a in got])
+ptr, faces = wall.faces_near(rng.uniform(-0.3, 1.3, (40, 3)), 0.2, margin=0.05)
+print(json.dumps([out, ptr.tolist(), faces.tolist()]))
+"""
+
+
+def test_kernels_run_as_plain_python_with_the_same_numbers():
+    root = str(Path(__file__).resolve().parents[2])
+    runs = []
+    for disable in ("0", "1"):
+        env = dict(os.environ, NUMBA_DISABLE_JIT=disable)
+        r = subprocess.run([sys.executable, "-c", INTERPRETED.format(root=root)], env=env,
+                           capture_output=True, text=True, check=True, timeout=300)
+        runs.append(json.loads(r.stdout))
+    assert runs[0] == runs[1]
+    assert sum(len(c[0]) for c in runs[0][0]) > 10

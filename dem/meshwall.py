@@ -10,8 +10,10 @@ faces near spheres (a uniform grid) and every contact of a sphere with it
 edges and vertices). It is not yet a wall of :class:`dem.Simulation`.
 
 >>> cube = MeshWall(CUBE_VERTICES, CUBE_FACES)
->>> cube.is_watertight(), round(cube.volume(), 12), round(cube.area, 12)
-(True, 1.0, 6.0)
+>>> cube
+MeshWall(8 vertices, 12 faces, watertight)
+>>> round(cube.volume(), 12), round(cube.area, 12)
+(1.0, 6.0)
 """
 
 import contextlib
@@ -141,6 +143,23 @@ class MeshWall:
         One line naming the cause: an empty mesh, a non-finite vertex, a vertex index
         out of range, a face repeating a vertex or another face, a degenerate (zero
         area) face (area below ``AREA_TOL`` times the squared bounding-box diagonal).
+
+    Attributes
+    ----------
+    face_normal : (nf, 3) float64
+        Unit normals, by the right-hand rule over each face's vertices.
+    face_area : (nf,) float64 [m^2]
+    bounds : (2, 3) float64 [m]
+        Lowest and highest corner of the bounding box.
+    edges : (ne, 2) int64
+        Each edge once, as its two vertices (lower first).
+    face_edges : (nf, 3) int64
+        The row of ``edges`` of edge ``k`` of each face (vertex ``k`` to ``k + 1``).
+    edge_face_ptr, edge_face_idx : int64
+        The faces of edge ``e`` (one on a boundary, two inside a surface) are
+        ``edge_face_idx[edge_face_ptr[e]:edge_face_ptr[e + 1]]``.
+    vertex_face_ptr, vertex_face_idx : int64
+        The faces around each vertex, the same way.
     """
 
     def __init__(self, vertices, faces, velocity=None, angular_velocity=None, center=None):
@@ -179,8 +198,14 @@ class MeshWall:
         self._edge_sign = np.bincount(inverse, weights=sign, minlength=self.edges.shape[0])
 
     # ------------------------------------------------------------------ properties
+    def __repr__(self):
+        closed = "watertight" if self.is_watertight() else f"{self.open_edges()} open edges"
+        return (f"MeshWall({self.vertices.shape[0]} vertices, {self.n_faces} faces, "
+                f"{closed})")
+
     @property
     def n_faces(self):
+        """Number of faces."""
         return self.faces.shape[0]
 
     @property

@@ -16,6 +16,7 @@ normals point from the home body to its neighbour.
 from .contact.laws import Elastic, HertzMindlin, Law, LinearSpring, Viscoelastic
 from .contact.model import ContactModel
 from .contact.rolling import Rolling
+from .meshwall import MeshWall
 from .neighbors import Box as Domain
 from .observers import (CollectionTracker, EnergyTracker, ParticleTracker, Periodic,
                         Record, kinetic_energy, stress_and_tangent)
@@ -30,8 +31,9 @@ __all__ = [
     "Bodies", "Box", "CollectionTracker", "Compound", "ConvexPolygon", "ConvexPolyhedron",
     "CustomShape",
     "ShapeScale", "ContactModel", "DT_FACTOR", "Domain", "Elastic",
-    "EnergyTracker", "HertzMindlin", "Law", "LinearSpring", "ParticleTracker", "Periodic",
-    "Plane", "Record", "Rolling", "Shape", "Simulation", "SimulationError", "Sphere",
-    "SphereRadius", "StateObject", "Viscoelastic", "critical_time_step", "kinetic_energy",
+    "EnergyTracker", "HertzMindlin", "Law", "LinearSpring", "MeshWall", "ParticleTracker",
+    "Periodic", "Plane", "Record", "Rolling", "Shape", "Simulation", "SimulationError",
+    "Sphere", "SphereRadius", "StateObject", "Viscoelastic", "critical_time_step",
+    "kinetic_energy",
     "stress_and_tangent",
 ]

@@ -53,7 +53,7 @@ WALL_MATERIAL_KEYS = {
                      "theirs)." + _FALLBACK),
     "poisson": Key("float", range=Range(0.0, 0.5, hi_closed=False),
                    doc="hertz_mindlin: the wall's Poisson's ratio." + _FALLBACK),
-    "rigid": Key("bool", doc="hertz_mindlin: true makes the wall rigid (E* and G* "
+    "rigid": Key("bool", default=False, doc="hertz_mindlin: true makes the wall rigid (E* and G* "
                              "from the particles' side alone); excludes young."),
     "mu": Key("float", range=NONNEGATIVE,
               doc="Friction coefficient between the wall and particles." + _FALLBACK),
@@ -93,7 +93,8 @@ def particle_groups(scene):
 
 
 def _own_keys(wall):
-    return [k for k in WALL_MATERIAL_KEYS if wall.get(k) is not None]
+    """The material keys a [[walls]] table sets (``rigid = false`` is no change)."""
+    return [k for k in WALL_MATERIAL_KEYS if wall.get(k) is not None and wall.get(k) is not False]
 
 
 def _uniform(scene):

@@ -50,7 +50,7 @@ WALL_MATERIAL_KEYS = {
                    doc="linear: the wall's tangential dashpot." + _FALLBACK),
     "young": Key("float", "Pa", range=POSITIVE,
                  doc="hertz_mindlin: the wall's Young's modulus (the particles keep "
-                     "theirs)." + _FALLBACK),
+                     "theirs; a rigid wall: rigid = true)." + _FALLBACK),
     "poisson": Key("float", range=Range(0.0, 0.5, hi_closed=False),
                    doc="hertz_mindlin: the wall's Poisson's ratio." + _FALLBACK),
     "rigid": Key("bool", default=False, doc="hertz_mindlin: true makes the wall rigid (E* and G* "

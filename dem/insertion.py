@@ -41,13 +41,15 @@ class Inserter:
     every : int
         Steps between insertions (default 100).
     seed : int
+    mat_id : int
+        Material row of the inserted particles (default 0).
 
     Attributes: ``inserted`` (the particles inserted so far), ``ids`` (their body
     indices).
     """
 
     def __init__(self, lo, hi, count, rate, radius, density, velocity=None, every=100,
-                 seed=0):
+                 seed=0, mat_id=0):
         self.lo, self.hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
         r = np.atleast_1d(np.asarray(radius, np.float64))
         self.r_min, self.r_max = float(r.min()), float(r.max())
@@ -62,6 +64,7 @@ class Inserter:
                                                                          np.float64)
         self.trigger = Periodic(every)
         self.rng = np.random.default_rng(seed)
+        self.mat_id = int(mat_id)
         self.inserted = 0
         self.ids = np.zeros(0, np.int64)
         self._checked = False
@@ -91,7 +94,8 @@ class Inserter:
             return
         pos, radius = self._place(sim, due)
         if len(radius):
-            new = sim.bodies.add_spheres(pos, radius, self.density, vel=self.velocity)
+            new = sim.bodies.add_spheres(pos, radius, self.density, vel=self.velocity,
+                                           mat_id=self.mat_id)
             self.ids = np.concatenate([self.ids, np.asarray(new, np.int64)])
             self.inserted += len(radius)
             sim.invalidate()

@@ -27,6 +27,7 @@ _POSITIVE = Range(0.0, lo_closed=False)
 _NONNEGATIVE = Range(0.0)
 
 _CONTACT_KEYS = dict(SCENE_SCHEMA["contact"].keys)
+del _CONTACT_KEYS["pair"]  # an RVE has one group of particles and one law
 _CONTACT_KEYS["kt"] = Key("float", "N/m", default=REQUIRED, range=_NONNEGATIVE,
                           only=("linear",),
                           doc="Tangential stiffness (friction acts through it).")

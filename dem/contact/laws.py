@@ -346,9 +346,11 @@ class HertzMindlin(Law):
     Parameters
     ----------
     young : float or (float, float)
-        Young's modulus [Pa] of each side (a plane may be given its own).
+        Young's modulus [Pa] of each side, ``(body, wall)`` for a sphere-wall law: a
+        plane may be given its own. ``math.inf`` on one side makes that side rigid
+        (its ``1/E`` terms in ``E*`` and ``G*`` vanish); both sides rigid is an error.
     poisson : float or (float, float)
-        Poisson's ratio [-] in [0, 0.5).
+        Poisson's ratio [-] in [0, 0.5) of each side (a rigid side's does not count).
     restitution : float
         Coefficient of restitution in (0, 1].
     mu : float
@@ -358,6 +360,14 @@ class HertzMindlin(Law):
         stiffness (default 0.05).
     rolling : Rolling or dict, optional
         Rolling (and twisting) resistance (:class:`~dem.contact.rolling.Rolling`).
+
+    Examples
+    --------
+    A steel sphere on a rigid plane: ``E* = E / (1 - nu^2)``.
+
+    >>> law = HertzMindlin(young=(2.1e11, math.inf), poisson=0.3, restitution=1.0, mu=0.0)
+    >>> round(law.e_star / (2.1e11 / (1 - 0.3**2)), 12)
+    1.0
     """
 
     code = 1
@@ -368,8 +378,11 @@ class HertzMindlin(Law):
     def __init__(self, young, poisson, restitution, mu, overlap_ref=0.05, rolling=None):
         e1, e2 = np.broadcast_to(np.asarray(young, dtype=float), (2,))
         n1, n2 = np.broadcast_to(np.asarray(poisson, dtype=float), (2,))
-        for name, v in (("young", e1), ("young", e2)):
-            _check(name, v, strict=True)
+        for v in (e1, e2):
+            if not v > 0.0:  # NaN fails too; inf is a rigid side
+                raise ValueError(f"young must be > 0 (inf: a rigid side), got {v}")
+        if math.isinf(e1) and math.isinf(e2):
+            raise ValueError("young: at most one side may be rigid (inf), got inf on both")
         for v in (n1, n2):
             if not (0.0 <= v < 0.5):
                 raise ValueError(f"poisson must be in [0, 0.5), got {v}")
@@ -377,8 +390,8 @@ class HertzMindlin(Law):
         if not (0.0 < e <= 1.0):
             raise ValueError(f"restitution must be in (0, 1], got {restitution}")
         self.mu = _check("mu", mu)
-        self.e_star = 1.0 / ((1 - n1**2) / e1 + (1 - n2**2) / e2)
-        self.g_star = 1.0 / (2 * (2 - n1) * (1 + n1) / e1 + 2 * (2 - n2) * (1 + n2) / e2)
+        self.e_star = float(1.0 / ((1 - n1**2) / e1 + (1 - n2**2) / e2))
+        self.g_star = float(1.0 / (2 * (2 - n1) * (1 + n1) / e1 + 2 * (2 - n2) * (1 + n2) / e2))
         self.beta = math.log(e) / math.sqrt(math.log(e) ** 2 + math.pi**2)
         self.overlap_ref = _check("overlap_ref", overlap_ref, strict=True)
         self._args = {"young": [float(e1), float(e2)], "poisson": [float(n1), float(n2)],

@@ -29,13 +29,16 @@ Layout (SI units throughout; ``d`` is ``[simulation] dim``)::
     seed = 0                      # random positions / polydisperse radii
     velocity = [0.0, 0.0, 0.0]    # [m/s] initial velocity of every particle
     file = "packing.txt"          # file: rows "x y z r" (3D) or "x y r" (2D)
+    group = "particles"           # the group [[contact]] pair names
 
     [[walls]]                     # any number; the normal points to the free side
     point = [0.0, 0.0, 0.0]       # [m], required
     normal = [0.0, 0.0, 1.0]      # required
     velocity = [0.0, 0.0, 0.0]    # [m/s], optional
+    rigid = true                  # optional: the wall's own material, the keys of the
+    mu = 0.3                      # particle-wall law (dem.io.materials)
 
-    [contact]
+    [contact]                     # or several [[contact]] with pair = ["a", "b"]
     law = "linear"                # required: "linear" or "hertz_mindlin"
     kn = 1e4                      # linear: [N/m], required
     kt = 5e3                      # linear: [N/m]
@@ -61,7 +64,7 @@ reference page.
 """
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -87,6 +90,12 @@ from .schema import (
     _Context,
     read_toml,
     validate,
+)
+from .materials import (
+    DEFAULT_GROUP,
+    WALL_MATERIAL_KEYS,
+    check_materials,
+    scene_materials,
 )
 from .schema import schema_markdown as _schema_markdown
 from .text import fmt as _fmt
@@ -149,6 +158,8 @@ SCHEMA = {
         "velocity": Key("vector", "m/s", default=0.0, doc="Initial velocity."),
         "file": Key("path", default=REQUIRED, only=("file",),
                     doc="Whitespace-separated rows x y [z] r, '#' comments."),
+        "group": Key("str", default=DEFAULT_GROUP,
+                     doc="Name of the particles' group, which [[contact]] pair names."),
     }),
     "domain": Section(doc="A periodic box: the axes along which the scene repeats and "
                           "its bounds on them (other axes stay open).", keys={
@@ -174,15 +185,22 @@ SCHEMA = {
                      doc="Steps between insertions."),
         "seed": Key("int", default=0, range=NONNEGATIVE,
                     doc="Seed of the random positions and radii."),
+        "group": Key("str", doc="Group of the inserted particles; default the "
+                                "[particles] group."),
     }),
     "walls": Section(doc="Planes; particles live on the side the normal points to.",
                      array=True, keys={
         "point": Key("vector", "m", default=REQUIRED, doc="A point of the plane."),
         "normal": Key("vector", default=REQUIRED, doc="Normal towards the free side."),
         "velocity": Key("vector", "m/s", default=0.0, doc="Prescribed velocity."),
+        **WALL_MATERIAL_KEYS,
     }),
-    "contact": Section(doc="The contact law, for sphere-sphere and sphere-wall pairs.",
+    "contact": Section(doc="The contact law: one [contact] table for every pair, or an "
+                           "array of [[contact]] tables, each naming the pair of groups "
+                           "it acts between (\"walls\": the walls' group).",
                        required=True, variant="law", keys={
+        "pair": Key("pair", doc="The two groups, e.g. [\"sand\", \"walls\"]; required "
+                                "in an array of [[contact]] tables; default: every pair."),
         "law": Key("str", default=REQUIRED, choices=("linear", "hertz_mindlin"),
                    doc="Contact law."),
         "kn": Key("float", "N/m", default=REQUIRED, range=POSITIVE, only=("linear",),
@@ -268,7 +286,10 @@ def validate_scene(data, source="<scene>", base_dir="."):
     ...
     dem.io.schema.SceneError: <scene>: [simulation] steps must be >= 0, got -1
     """
-    out, ctx = validate(data, SCHEMA, source, base_dir, dim_key=("simulation", "dim"))
+    schema = SCHEMA
+    if isinstance(data, dict) and isinstance(data.get("contact"), list):
+        schema = {**SCHEMA, "contact": replace(SCHEMA["contact"], array=True)}
+    out, ctx = validate(data, schema, source, base_dir, dim_key=("simulation", "dim"))
     _cross_checks(ctx, out)
     return out
 
@@ -291,6 +312,7 @@ def _cross_checks(ctx, scene):
             ctx.fail("normal must be a non-zero vector", f"[[walls]] #{i + 1}")
     _check_domain(ctx, scene)
     _check_insert(ctx, scene)
+    check_materials(ctx, scene)
 
 
 def _check_insert(ctx, scene):
@@ -398,7 +420,9 @@ def build_bodies(scene):
             k = int(out[0])
             ctx.fail(f"particle {k} at {_show(pos[k].tolist())} lies outside the [domain] "
                      f"along a periodic axis", "[particles]")
-    bodies = Bodies.spheres(pos, radius=radius, density=p["density"], vel=p["velocity"])
+    mats = scene_materials(ctx, scene)
+    bodies = Bodies.spheres(pos, radius=radius, density=p["density"], vel=p["velocity"],
+                            mat_id=mats.groups[p["group"]])
     for i, w in enumerate(scene["walls"]):
         point, normal = np.array(w["point"]), np.array(w["normal"])
         normal = normal / np.linalg.norm(normal)
@@ -408,7 +432,7 @@ def build_bodies(scene):
             ctx.fail(f"particle {k} at {_show(pos[k].tolist())} overlaps the wall by "
                      f"{_fmt(-gap[k])} m (is the normal pointing to the free side?)",
                      f"[[walls]] #{i + 1}")
-        bodies.add_plane(point, normal, velocity=w["velocity"])
+        bodies.add_plane(point, normal, velocity=w["velocity"], mat_id=mats.walls[i])
     return bodies
 
 
@@ -422,33 +446,21 @@ def build_simulation(scene):
     output : OutputSettings
         The ``[output]`` section with the directory and HDF5 file resolved.
     """
-    from ..contact.laws import HertzMindlin, LinearSpring
     from ..simulation import Simulation
     from ..timestep import stable_time_step
 
     ctx = _Context(scene.get("source", "<scene>"), Path("."))
     bodies = build_bodies(scene)
-    c = scene["contact"]
-    try:
-        if c["law"] == "linear":
-            law = LinearSpring(kn=c["kn"], kt=c["kt"], mu=c["mu"], gamma_n=c["gamma_n"],
-                               gamma_t=c["gamma_t"], restitution=c["restitution"])
-        else:
-            law = HertzMindlin(young=c["young"], poisson=c["poisson"],
-                               restitution=c["restitution"], mu=c["mu"])
-    except ValueError as exc:
-        ctx.fail(str(exc), "[contact]")
+    mats = scene_materials(ctx, scene)
     s = scene["simulation"]
     if s["dt"] is not None and not s["allow_unstable_dt"]:
-        from ..contact.model import ContactModel
-
-        dt_max = stable_time_step(bodies, ContactModel(law), s["damping"])[0]
+        dt_max = stable_time_step(bodies, mats.model, s["damping"])[0]
         if s["dt"] > dt_max:
             ctx.fail(f"dt = {_fmt(s['dt'])} s exceeds the stable time step dt_stable = "
                      f"{dt_max:.4g} s of these particles and [contact] law; lower dt or "
                      f"set allow_unstable_dt = true", "[simulation]")
     try:
-        sim = Simulation(bodies, law, dt=s["dt"], gravity=s["gravity"],
+        sim = Simulation(bodies, mats.model, dt=s["dt"], gravity=s["gravity"],
                          damping=s["damping"], skin=s["skin"],
                          neighbor_backend=s["neighbor_backend"],
                          overlap_limit=s["overlap_limit"],
@@ -462,7 +474,8 @@ def build_simulation(scene):
         try:
             inserter = Inserter(ins["lo"], ins["hi"], ins["count"], ins["rate"],
                                 ins["radius"], ins["density"] or scene["particles"]["density"],
-                                velocity=ins["velocity"], every=ins["every"], seed=ins["seed"])
+                                velocity=ins["velocity"], every=ins["every"], seed=ins["seed"],
+                                mat_id=mats.groups[ins["group"] or scene["particles"]["group"]])
             inserter.check_mass(sim)
         except ValueError as exc:
             ctx.fail(str(exc), "[insert]")

@@ -77,11 +77,11 @@ class Key:
     ``type`` is one of ``int``, ``float``, ``bool``, ``str``, ``vector`` (``dim``
     numbers), ``radius`` (a number or ``[min, max]``), ``tensor`` (a number or ``dim``
     rows of ``dim`` numbers; ``range`` applies to a number only), ``axes`` (distinct
-    axis names among the first ``dim`` of x, y, z) and ``path`` (a file name relative
-    to the scene). ``default`` is a value, ``None`` (optional: computed
-    when absent) or :data:`REQUIRED`. ``only`` lists the variants (generators, laws)
-    the key belongs to (empty: all); ``required_for`` the variants for which it is
-    required.
+    axis names among the first ``dim`` of x, y, z), ``pair`` (two non-empty names) and
+    ``path`` (a file name relative to the scene). ``default`` is a value, ``None``
+    (optional: computed when absent) or :data:`REQUIRED`. ``only`` lists the variants
+    (generators, laws) the key belongs to (empty: all); ``required_for`` the variants
+    for which it is required.
     """
 
     type: str
@@ -274,6 +274,12 @@ def _check_value(ctx, where, key, spec, value):
             ctx.fail(f"{key} must be a list of distinct axes among "
                      f"{_show(list(names))}, got {_show(value)}", where)
         return list(value)
+    if t == "pair":
+        if (not isinstance(value, list) or len(value) != 2
+                or any(not isinstance(v, str) or not v for v in value)):
+            ctx.fail(f"{key} must be two names, e.g. [\"sand\", \"walls\"], got "
+                     f"{_show(value)}", where)
+        return list(value)
     if t == "radius":
         if isinstance(value, list):
             if len(value) != 2:
@@ -348,7 +354,8 @@ def _describe(spec):
     kind = {"vector": "array of dim numbers", "radius": "number or [min, max]",
             "tensor": "number or dim x dim array",
             "path": "file name", "str": "string", "int": "integer", "float": "number",
-            "bool": "boolean", "axes": "list of axis names"}[spec.type]
+            "bool": "boolean", "axes": "list of axis names",
+            "pair": "two names"}[spec.type]
     return kind + (f", {spec.unit}" if spec.unit != "-" else "")
 
 

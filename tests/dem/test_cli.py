@@ -138,6 +138,32 @@ def _wall_through_particles(scene, tmp_path):
     scene["walls"].append({"point": [0.0, 0.0, 0.02], "normal": [0.0, 0.0, 1.0]})
 
 
+HERTZ = {"law": "hertz_mindlin", "young": 1.0e7, "poisson": 0.3, "mu": 0.5}
+
+
+def _hertz_wall(**changes):
+    """The base scene with a Hertz-Mindlin law, its wall given ``changes``."""
+    def edit(scene, tmp_path):
+        scene["contact"] = dict(HERTZ)
+        scene["walls"][0].update(changes)
+    return edit
+
+
+def _groups(*tables, insert_group=None):
+    """The base scene's particles as group "sand" (and an [insert] of
+    ``insert_group``), its law as the [[contact]] ``tables`` (pair, law kind)."""
+    def edit(scene, tmp_path):
+        scene["particles"]["group"] = "sand"
+        if insert_group:
+            scene["insert"] = {"count": 2, "rate": 100.0, "lo": [0.0, 0.0, 0.05],
+                               "hi": [0.03, 0.03, 0.08], "radius": 0.005,
+                               "group": insert_group}
+        linear = dict(scene["contact"])
+        scene["contact"] = [{**(HERTZ if kind == "hertz" else linear),
+                             **({"pair": pair} if pair else {})} for pair, kind in tables]
+    return edit
+
+
 # case: (edit of the base scene, fragments the one error line must contain)
 BAD = {
     "unknown key": (_set("particles", "radiuss", 0.01),
@@ -186,6 +212,35 @@ BAD = {
         ["[particles] file", "particles 1 and 2", "overlap by 0.002 m"]),
     "missing particle file": (_missing_file,
                               ["[particles] file: cannot read", "missing.txt"]),
+    "wall key of another law": (_hertz_wall(kn=1e4), [
+        "[[walls]] #1 kn is not used with the hertz_mindlin law of particle-wall contacts"]),
+    "wall rigid with a linear law": (_edit_wall(rigid=True),
+                                     ["[[walls]] #1 rigid is not used with the linear law"]),
+    "wall young negative": (_hertz_wall(young=-1.0),
+                            ["[[walls]] #1 young must be > 0, got -1"]),
+    "wall mu nan": (_edit_wall(mu=float("nan")), ["[[walls]] #1 mu must be finite, got nan"]),
+    "wall poisson 0.5": (_hertz_wall(poisson=0.5),
+                         ["[[walls]] #1 poisson must be in [0, 0.5), got 0.5"]),
+    "wall rigid and young": (_hertz_wall(rigid=True, young=1e9),
+                             ["[[walls]] #1 rigid = true and young exclude each other"]),
+    "pair of an unknown group": (_groups((["sand", "sand"], "linear"),
+                                         (["sand", "steel"], "linear")),
+                                 ['[[contact]] #2 pair names the group "steel", which no '
+                                  '[particles] or [insert] defines']),
+    "group pair with no law": (_groups((["sand", "sand"], "linear")),
+                               ['[[contact]] no law for the group pair ["sand", "walls"]']),
+    "pair missing among several": (_groups((["sand", "sand"], "linear"), (None, "linear")),
+                                   ["[[contact]] #2 missing required key 'pair'"]),
+    "pair repeated": (_groups((["sand", "walls"], "linear"), (["walls", "sand"], "linear")),
+                      ['[[contact]] #2 pair = ["walls", "sand"] repeats that of #1']),
+    "law kinds mixed in a bucket": (
+        _groups((["sand", "sand"], "linear"), (["sand", "gravel"], "hertz"),
+                (["gravel", "gravel"], "linear"), (["sand", "walls"], "linear"),
+                (["gravel", "walls"], "linear"), insert_group="gravel"),
+        ['[[contact]] #2 law = "hertz_mindlin" differs from law = "linear" of #1: every '
+         "particle-particle pair needs the same law"]),
+    "group named walls": (_set("particles", "group", "walls"),
+                          ['[particles] group must not be "walls"']),
 }
 
 
@@ -199,6 +254,10 @@ def test_bad_scene_exits_2_with_one_line(case, tmp_path, capsys):
     assert code == 2
     assert_one_line_error(err, *fragments)
     assert not (tmp_path / "out").exists()
+    if case.startswith(("wall ", "pair", "group", "law kinds")):  # materials: --dry-run too
+        code, _, err = run_cli(["run", path, "--dry-run"], capsys)
+        assert code == 2
+        assert_one_line_error(err, *fragments)
 
 
 def test_unreadable_scene_file(tmp_path, capsys):

@@ -219,3 +219,31 @@ def test_mixed_law_kinds_in_one_bucket_are_refused():
     hertz = dem.HertzMindlin(young=1e8, poisson=0.3, restitution=0.5, mu=0.3)
     with pytest.raises(ValueError, match="same law kind"):
         dem.ContactModel({(0, 0): LAW, (0, 1): hertz})
+
+
+@pytest.mark.parametrize("young, message", [
+    ((math.inf, math.inf), "at most one side may be rigid"),
+    ((1e8, math.nan), "young must be > 0"),
+    ((-1e8, math.inf), "young must be > 0"),
+    (0.0, "young must be > 0"),
+])
+def test_bad_hertz_moduli_are_refused(young, message):
+    with pytest.raises(ValueError, match=message):
+        dem.HertzMindlin(young=young, poisson=0.3, restitution=0.5, mu=0.3)
+
+
+def test_a_rigid_side_keeps_the_time_step_and_damping_finite():
+    """1/inf = 0: E* and G* of a rigid plane are those of the body's side alone, and
+    the critical stiffness and damping ratios stay finite."""
+    rigid = dem.HertzMindlin(young=(1e8, math.inf), poisson=(0.3, 0.2), restitution=0.5,
+                             mu=0.3)
+    assert rigid.e_star == pytest.approx(1e8 / (1 - 0.3**2), rel=1e-14)
+    assert rigid.g_star == pytest.approx(1e8 / (2 * (2 - 0.3) * (1 + 0.3)), rel=1e-14)
+    same = dem.HertzMindlin(young=1e8, poisson=0.3, restitution=0.5, mu=0.3)
+    assert rigid.critical_stiffness(R) == pytest.approx(2.0 * same.critical_stiffness(R))
+    assert rigid.damping_ratios(1.0, 3.5) == same.damping_ratios(1.0, 3.5)
+    bodies = pair()
+    bodies.add_plane([0.0, 0.0, -R], [0.0, 0.0, 1.0])
+    sim = dem.Simulation(bodies, dem.ContactModel(same, wall_law=rigid))
+    assert math.isfinite(sim.dt_crit) and 0.0 < sim.dt < sim.dt_stable
+    assert dem.contact.laws.law_from_spec(rigid.spec()).e_star == rigid.e_star

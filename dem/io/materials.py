@@ -1,0 +1,236 @@
+"""Materials of a scene file: particle groups, walls of their own material, and the
+:class:`dem.ContactModel` they make.
+
+A scene's particles belong to groups (``[particles] group``, default ``"particles"``;
+``[insert] group``, default the same); every wall belongs to the group ``"walls"``. The
+contact law is one ``[contact]`` table for every pair of groups, or an array of
+``[[contact]]`` tables, each naming its ``pair`` of groups (``pair = ["sand", "walls"]``
+is the law between the sand and every wall). A ``[[walls]]`` table may give the wall
+its own material: the keys of the particle-wall law that it names replace those of the
+law of its pair, the rest are kept. For ``hertz_mindlin`` a wall's ``young`` and
+``poisson`` are the wall's side of the pair (the particles' side keeps the ``[contact]``
+values) and ``rigid = true`` makes it rigid (``1/E`` of the wall is 0 in ``E*`` and
+``G*``); for ``linear`` the wall's ``kn``, ``kt``, ... are the contact's own.
+
+Each group becomes a material row (``mat_id``) in the order particles, insert; walls
+without material keys share one row after them, and each wall with its own material
+gets its own. A scene with one ``[contact]`` table and no wall material keeps every
+body on row 0 and one law for all.
+"""
+
+import math
+from dataclasses import dataclass
+
+from .schema import NONNEGATIVE, POSITIVE, UNIT_OPEN_CLOSED, Key, Range
+from .text import show as _show
+
+__all__ = ["DEFAULT_GROUP", "WALLS", "WALL_MATERIAL_KEYS", "Materials", "check_materials",
+           "scene_materials"]
+
+#: the group of particles that name none
+DEFAULT_GROUP = "particles"
+#: the group of every wall
+WALLS = "walls"
+
+_LAW_NAMES = {"linear": "LinearSpring", "hertz_mindlin": "HertzMindlin"}
+
+#: the keys a [[walls]] table may set for its own material, by law
+WALL_KEYS = {"linear": ("kn", "kt", "gamma_n", "gamma_t", "mu", "restitution"),
+             "hertz_mindlin": ("young", "poisson", "rigid", "mu", "restitution")}
+
+_FALLBACK = " Default: the particle-wall [contact] value."
+WALL_MATERIAL_KEYS = {
+    "kn": Key("float", "N/m", range=POSITIVE,
+              doc="linear: the wall's normal stiffness." + _FALLBACK),
+    "kt": Key("float", "N/m", range=NONNEGATIVE,
+              doc="linear: the wall's tangential stiffness." + _FALLBACK),
+    "gamma_n": Key("float", "N s/m", range=NONNEGATIVE,
+                   doc="linear: the wall's normal dashpot." + _FALLBACK),
+    "gamma_t": Key("float", "N s/m", range=NONNEGATIVE,
+                   doc="linear: the wall's tangential dashpot." + _FALLBACK),
+    "young": Key("float", "Pa", range=POSITIVE,
+                 doc="hertz_mindlin: the wall's Young's modulus (the particles keep "
+                     "theirs; a rigid wall: rigid = true)." + _FALLBACK),
+    "poisson": Key("float", range=Range(0.0, 0.5, hi_closed=False),
+                   doc="hertz_mindlin: the wall's Poisson's ratio." + _FALLBACK),
+    "rigid": Key("bool", default=False, doc="hertz_mindlin: true makes the wall rigid (E* and G* "
+                             "from the particles' side alone); excludes young."),
+    "mu": Key("float", range=NONNEGATIVE,
+              doc="Friction coefficient between the wall and particles." + _FALLBACK),
+    "restitution": Key("float", range=UNIT_OPEN_CLOSED,
+                       doc="Restitution between the wall and particles." + _FALLBACK),
+}
+
+
+@dataclass(frozen=True)
+class Materials:
+    """The material rows of a scene: ``groups`` {group name: mat_id}, ``walls`` the
+    mat_id of each wall in file order, ``model`` the :class:`dem.ContactModel`."""
+
+    groups: dict
+    walls: list
+    model: object
+
+
+# --------------------------------------------------------------------------- reading
+def contact_tables(scene):
+    """The ``[contact]`` table(s) of a validated scene, as a list."""
+    c = scene["contact"]
+    return c if isinstance(c, list) else [c]
+
+
+def _where(scene, i):
+    return f"[[contact]] #{i + 1}" if isinstance(scene["contact"], list) else "[contact]"
+
+
+def particle_groups(scene):
+    """The particle groups, in mat_id order: [particles], then a new [insert] one."""
+    groups = [scene["particles"]["group"]]
+    ins = scene.get("insert")
+    if ins is not None and ins.get("group") is not None and ins["group"] not in groups:
+        groups.append(ins["group"])
+    return groups
+
+
+def _own_keys(wall):
+    """The material keys a [[walls]] table sets (``rigid = false`` is no change)."""
+    return [k for k in WALL_MATERIAL_KEYS if wall.get(k) is not None and wall.get(k) is not False]
+
+
+def _uniform(scene):
+    """One [contact] table for every pair and no wall of its own material."""
+    tables = contact_tables(scene)
+    return (len(tables) == 1 and tables[0]["pair"] is None
+            and not any(_own_keys(w) for w in scene["walls"]))
+
+
+def _pairs(scene):
+    """The group pairs the scene holds, particle-particle then particle-wall."""
+    groups = particle_groups(scene)
+    pp = [(a, b) for i, a in enumerate(groups) for b in groups[i:]]
+    pw = [(a, WALLS) for a in groups] if scene["walls"] else []
+    return pp, pw
+
+
+def _table_for(scene, a, b):
+    """(index, table) of the [contact] table acting between groups a and b, or None."""
+    for i, t in enumerate(contact_tables(scene)):
+        if t["pair"] is None or sorted(t["pair"]) == sorted((a, b)):
+            return i, t
+    return None
+
+
+# --------------------------------------------------------------------------- checks
+def check_materials(ctx, scene):
+    """Cross checks of groups, [[contact]] pairs and wall materials (one line each)."""
+    tables = contact_tables(scene)
+    if not tables:
+        ctx.fail("needs at least one table", "[[contact]]")
+    groups = particle_groups(scene)
+    if WALLS in groups:
+        which = "[particles]" if scene["particles"]["group"] == WALLS else "[insert]"
+        ctx.fail(f'group must not be "{WALLS}", the name of the walls\' group', which)
+    _check_pairs(ctx, scene, groups)
+    pp, pw = _pairs(scene)
+    for a, b in pp + pw:
+        if _table_for(scene, a, b) is None:
+            ctx.fail(f"no law for the group pair {_show([a, b])} that the scene holds "
+                     f"(add a [[contact]] table with pair = {_show([a, b])})",
+                     "[[contact]]")
+    for bucket, pairs in (("particle-particle", pp), ("particle-wall", pw)):
+        used = sorted({_table_for(scene, a, b)[0] for a, b in pairs})
+        for i in used[1:]:
+            if tables[i]["law"] != tables[used[0]]["law"]:
+                ctx.fail(f'law = "{tables[i]["law"]}" differs from law = '
+                         f'"{tables[used[0]]["law"]}" of #{used[0] + 1}: every '
+                         f"{bucket} pair needs the same law (one compiled loop per kind "
+                         f"of contact)", _where(scene, i))
+    if pw:
+        _check_walls(ctx, scene, tables[_table_for(scene, *pw[0])[0]]["law"])
+
+
+def _check_pairs(ctx, scene, groups):
+    tables = contact_tables(scene)
+    seen = {}
+    for i, t in enumerate(tables):
+        where = _where(scene, i)
+        if t["pair"] is None:
+            if len(tables) > 1:
+                ctx.fail("missing required key 'pair' (each of several [[contact]] "
+                         "tables names the two groups it acts between)", where)
+            continue
+        for name in t["pair"]:
+            if name not in groups and name != WALLS:
+                known = _show(groups + [WALLS])
+                ctx.fail(f'pair names the group "{name}", which no [particles] or '
+                         f"[insert] defines (groups: {known})", where)
+        if t["pair"] == [WALLS, WALLS]:
+            ctx.fail("pair: walls do not touch walls", where)
+        key = tuple(sorted(t["pair"]))
+        if key in seen:
+            ctx.fail(f"pair = {_show(t['pair'])} repeats that of #{seen[key] + 1}", where)
+        seen[key] = i
+
+
+def _check_walls(ctx, scene, law):
+    for i, w in enumerate(scene["walls"]):
+        where = f"[[walls]] #{i + 1}"
+        for key in _own_keys(w):
+            if key not in WALL_KEYS[law]:
+                ctx.fail(f'{key} is not used with the {law} law of particle-wall '
+                         f"contacts (a wall takes {', '.join(WALL_KEYS[law])})", where)
+        if w.get("rigid") and w.get("young") is not None:
+            ctx.fail("rigid = true and young exclude each other (a rigid wall has no "
+                     "Young's modulus)", where)
+
+
+# --------------------------------------------------------------------------- building
+def _law(table, where, ctx, **own):
+    """The law of a [contact] table, with a wall's own keys replacing its values."""
+    from ..contact.laws import law_from_spec
+
+    c = {**table, **{k: v for k, v in own.items() if v is not None}}
+    if c["law"] == "linear":
+        spec = {k: c[k] for k in ("kn", "kt", "mu", "gamma_n", "gamma_t", "restitution")}
+    else:
+        wall_young = math.inf if c.get("rigid") else own.get("young") or table["young"]
+        wall_nu = own.get("poisson") if own.get("poisson") is not None else table["poisson"]
+        spec = {"young": [table["young"], wall_young],
+                "poisson": [table["poisson"], wall_nu],
+                "restitution": c["restitution"], "mu": c["mu"]}
+    try:
+        return law_from_spec({"law": _LAW_NAMES[c["law"]], **spec})
+    except ValueError as exc:
+        ctx.fail(str(exc), where)
+
+
+def scene_materials(ctx, scene):
+    """The :class:`Materials` of a validated scene (see the module docstring)."""
+    from ..contact.model import ContactModel
+
+    groups = particle_groups(scene)
+    walls = scene["walls"]
+    if _uniform(scene):
+        law = _law(contact_tables(scene)[0], "[contact]", ctx)
+        return Materials({g: 0 for g in groups}, [0] * len(walls), ContactModel(law))
+    ids = {g: k for k, g in enumerate(groups)}
+    nxt = len(groups)
+    shared = nxt if any(not _own_keys(w) for w in walls) else None
+    nxt += shared is not None
+    wall_ids = []
+    for w in walls:
+        wall_ids.append(nxt if _own_keys(w) else shared)
+        nxt += bool(_own_keys(w))
+    pp, pw = {}, {}
+    for a, b in _pairs(scene)[0]:
+        i, t = _table_for(scene, a, b)
+        pp[(ids[a], ids[b])] = _law(t, _where(scene, i), ctx)
+    for g in groups:
+        for k, w in enumerate(walls):
+            if (ids[g], wall_ids[k]) in pw:
+                continue
+            i, t = _table_for(scene, g, WALLS)
+            own = {key: w[key] for key in _own_keys(w)}
+            where = f"[[walls]] #{k + 1}" if own else _where(scene, i)
+            pw[(ids[g], wall_ids[k])] = _law(t, where, ctx, **own)
+    return Materials(ids, wall_ids, ContactModel(pp, pw or None))

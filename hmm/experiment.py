@@ -56,12 +56,14 @@ OUTPUTS = ("rve_test.h5", "rve_test.png", "packing.h5")
 # --------------------------------------------------------------------------- packing
 def _law(c):
     from dem import HertzMindlin, LinearSpring
+    from dem.io.materials import rolling_spec
 
     if c["law"] == "linear":
         return LinearSpring(kn=c["kn"], kt=c["kt"], mu=c["mu"], gamma_n=c["gamma_n"],
-                            gamma_t=c["gamma_t"], restitution=c["restitution"])
+                            gamma_t=c["gamma_t"], restitution=c["restitution"],
+                            rolling=rolling_spec(c))
     return HertzMindlin(young=c["young"], poisson=c["poisson"],
-                        restitution=c["restitution"], mu=c["mu"])
+                        restitution=c["restitution"], mu=c["mu"], rolling=rolling_spec(c))
 
 
 def make_packing(cfg):

@@ -169,7 +169,7 @@ def validate_config(data, source="<rve>", base_dir="."):
         for key in _GENERATION_KEYS:
             p[key] = None
     else:
-        _check_generated(ctx, p, t)
+        _check_generated(ctx, p, t, cfg["contact"])
     _check_kind(ctx, data, t)
     if t["increment"] > t["axial_strain"]:
         ctx.fail(f"increment = {_fmt(t['increment'])} must not exceed axial_strain = "
@@ -184,7 +184,7 @@ def validate_config(data, source="<rve>", base_dir="."):
     return cfg
 
 
-def _check_generated(ctx, p, t):
+def _check_generated(ctx, p, t, contact):
     """A packing to generate: its required keys, shape, size and particle scales."""
     for key, kind in (("count", "integer"), ("radius", "number or [min, max], m"),
                       ("p0", "number, Pa")):
@@ -192,7 +192,7 @@ def _check_generated(ctx, p, t):
             ctx.fail(f"missing required key '{key}' ({kind}; or give file)", "[packing]")
     if t["confining"] is None:
         t["confining"] = p["p0"]
-    check_shape(ctx, p, p["dim"])
+    check_shape(ctx, p, p["dim"], rolling=("[contact]", contact))
     try:
         PARTICLES.check(p["count"], "count")
         check_particle_scales(p["radius"], p["density"], p["dim"])
@@ -232,9 +232,15 @@ def _check_kind(ctx, data, t):
                  f"{_fmt(t['confining'])} Pa", "[test]")
 
 
-def check_shape(ctx, p, dim, where="[packing]"):
+def check_shape(ctx, p, dim, where="[packing]", rolling=None):
     """The shape keys ``shape``, ``sides``, ``sides_max`` of a section ``p`` agree with
-    each other and with ``dim`` (``sides`` defaults to 6 for polygons)."""
+    each other and with ``dim`` (``sides`` defaults to 6 for polygons); ``rolling``,
+    the (section, table) holding ``mu_roll``, is for spheres and disks only."""
+    if rolling is not None and p["shape"] != "sphere":
+        for key in ("mu_roll", "mu_twist"):
+            if rolling[1].get(key):
+                ctx.fail(f"{key}: rolling resistance acts between spheres and disks, not "
+                         f"with shape = {p['shape']!r}", rolling[0])
     if p["shape"] != "polygon":
         for key in ("sides", "sides_max"):
             if p[key] is not None:

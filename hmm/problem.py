@@ -205,7 +205,7 @@ def validate_problem(data, source="<problem>", base_dir="."):
         from .experiment_config import check_shape
         from .micro import PERTURBATION_NEEDS_RELAX
 
-        check_shape(ctx, out["micro"], m["dim"], "[micro]")
+        check_shape(ctx, out["micro"], m["dim"], "[micro]", ("[micro]", out["micro"]))
         _check_micro_sizes(ctx, out, m["dim"])
         if out["micro"]["tangent"] == "perturbation" and not out["micro"]["relax"]:
             ctx.fail(f"tangent = \"perturbation\" with relax = false: "

@@ -290,9 +290,11 @@ def _packing(problem, k, dim, progress, spot=None):
         if spot is not None and spot["mu"] is not None:
             rve.set_friction(spot["mu"])
         return rve
+    from dem.io.materials import rolling_spec
+
     from .experiment_config import shape_maker
 
-    law = LinearSpring(kn=mc["kn"], kt=mc["kt"], mu=mc["mu"])
+    law = LinearSpring(kn=mc["kn"], kt=mc["kt"], mu=mc["mu"], rolling=rolling_spec(mc))
     return rvemod.generate(dim, mc["count"], mc["radius"], law, mc["p0"],
                            density=mc["density"], seed=mc["seed"] + k,
                            friction=mc["consolidation_friction"],

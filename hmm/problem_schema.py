@@ -175,6 +175,11 @@ SCHEMA = {
                   doc="Tangential contact stiffness."),
         "mu": Key("float", default=0.5, range=NONNEGATIVE, only=("dem", "adaptive"),
                   doc="Friction coefficient."),
+        "mu_roll": Key("float", default=0.0, range=NONNEGATIVE, only=("dem", "adaptive"),
+                       doc="Rolling-friction coefficient of the contacts (dem.Rolling; "
+                           "0: none)."),
+        "eta_roll": Key("float", default=0.0, range=NONNEGATIVE, only=("dem", "adaptive"),
+                        doc="Damping ratio of the rolling dashpot."),
         "damping": Key("float", default=0.5, range=Range(0.0, 1.0, True, False),
                        only=("dem", "adaptive"), doc="Local damping of the RVEs."),
         "tol": Key("float", default=1e-3, range=POSITIVE, only=("dem", "adaptive"),

@@ -24,8 +24,8 @@ from dataclasses import dataclass
 from .schema import NONNEGATIVE, POSITIVE, UNIT_OPEN_CLOSED, Key, Range
 from .text import show as _show
 
-__all__ = ["DEFAULT_GROUP", "WALLS", "WALL_MATERIAL_KEYS", "Materials", "check_materials",
-           "scene_materials"]
+__all__ = ["DEFAULT_GROUP", "ROLLING_KEYS", "WALLS", "WALL_MATERIAL_KEYS", "Materials",
+           "check_materials", "rolling_spec", "scene_materials"]
 
 #: the group of particles that name none
 DEFAULT_GROUP = "particles"
@@ -34,9 +34,26 @@ WALLS = "walls"
 
 _LAW_NAMES = {"linear": "LinearSpring", "hertz_mindlin": "HertzMindlin"}
 
+#: rolling and twisting resistance (:class:`dem.Rolling`), keys of every law's table
+ROLLING_KEYS = {
+    "mu_roll": Key("float", default=0.0, range=NONNEGATIVE,
+                   doc="Rolling-friction coefficient: the rolling moment is capped at "
+                       "mu_roll R f_n (R the effective radius); 0 with mu_twist = 0: "
+                       "no rolling resistance."),
+    "eta_roll": Key("float", default=0.0, range=NONNEGATIVE,
+                    doc="Damping ratio of the rolling and twisting dashpots."),
+    "k_roll": Key("float", range=NONNEGATIVE,
+                  doc="Rolling stiffness over k_n R^2; default 2.25 mu_roll^2."),
+    "mu_twist": Key("float", default=0.0, range=NONNEGATIVE,
+                    doc="Twisting-friction coefficient (3D): the moment about the normal "
+                        "is capped at mu_twist R f_n."),
+    "k_twist": Key("float", range=NONNEGATIVE,
+                   doc="Twisting stiffness over k_n R^2; default 2.25 mu_twist^2."),
+}
+
 #: the keys a [[walls]] table may set for its own material, by law
-WALL_KEYS = {"linear": ("kn", "kt", "gamma_n", "gamma_t", "mu", "restitution"),
-             "hertz_mindlin": ("young", "poisson", "rigid", "mu", "restitution")}
+WALL_KEYS = {"linear": ("kn", "kt", "gamma_n", "gamma_t", "mu", "restitution", "mu_roll"),
+             "hertz_mindlin": ("young", "poisson", "rigid", "mu", "restitution", "mu_roll")}
 
 _FALLBACK = " Default: the particle-wall [contact] value."
 WALL_MATERIAL_KEYS = {
@@ -59,7 +76,20 @@ WALL_MATERIAL_KEYS = {
               doc="Friction coefficient between the wall and particles." + _FALLBACK),
     "restitution": Key("float", range=UNIT_OPEN_CLOSED,
                        doc="Restitution between the wall and particles." + _FALLBACK),
+    "mu_roll": Key("float", range=NONNEGATIVE,
+                   doc="Rolling-friction coefficient between the wall and particles."
+                       + _FALLBACK),
 }
+
+
+def rolling_spec(table):
+    """The ``rolling`` argument of a law from a table with :data:`ROLLING_KEYS`: a
+    :class:`dem.Rolling` spec, or None when ``mu_roll`` and ``mu_twist`` are 0."""
+    if not (table.get("mu_roll") or table.get("mu_twist")):
+        return None
+    return {"mu_roll": table.get("mu_roll") or 0.0, "eta_roll": table.get("eta_roll") or 0.0,
+            "k_roll": table.get("k_roll"), "mu_twist": table.get("mu_twist") or 0.0,
+            "k_twist": table.get("k_twist")}
 
 
 @dataclass(frozen=True)
@@ -198,6 +228,9 @@ def _law(table, where, ctx, **own):
         spec = {"young": [table["young"], wall_young],
                 "poisson": [table["poisson"], wall_nu],
                 "restitution": c["restitution"], "mu": c["mu"]}
+    roll = rolling_spec(c)
+    if roll is not None:
+        spec["rolling"] = roll
     try:
         return law_from_spec({"law": _LAW_NAMES[c["law"]], **spec})
     except ValueError as exc:

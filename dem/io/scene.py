@@ -93,6 +93,7 @@ from .schema import (
 )
 from .materials import (
     DEFAULT_GROUP,
+    ROLLING_KEYS,
     WALL_MATERIAL_KEYS,
     check_materials,
     scene_materials,
@@ -219,6 +220,7 @@ SCHEMA = {
                   doc="Coulomb friction coefficient."),
         "restitution": Key("float", default=1.0, range=UNIT_OPEN_CLOSED,
                            doc="Normal coefficient of restitution."),
+        **ROLLING_KEYS,
     }),
     "output": Section(doc="HDF5 output written by `dem run`.", keys={
         "dir": Key("str", doc="Output directory; default output/<scene stem>."),

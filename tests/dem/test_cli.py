@@ -241,6 +241,10 @@ BAD = {
          "particle-particle pair needs the same law"]),
     "group named walls": (_set("particles", "group", "walls"),
                           ['[particles] group must not be "walls"']),
+    "negative rolling friction": (_set("contact", "mu_roll", -0.1),
+                                  ["[contact] mu_roll must be >= 0"]),
+    "negative rolling stiffness": (_set("contact", "k_roll", -1.0),
+                                   ["[contact] k_roll must be >= 0"]),
 }
 
 

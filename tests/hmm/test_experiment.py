@@ -264,9 +264,15 @@ def test_cli_reports_a_failed_relaxation(biaxial, tmp_path, capsys):
      "[packing] sides must be in [3, 64], got 2"),
     (("[packing]", '[packing]\nfile = "none.h5"\nshape = "box"'),
      "is not used with file"),
+    ((("[packing]", '[packing]\nshape = "polygon"'), ("mu = 0.5", "mu = 0.5\nmu_roll = 0.1")),
+     '[contact] mu_roll: rolling resistance acts between spheres and disks, not with '
+     "shape = 'polygon'"),
+    (("mu = 0.5", "mu = 0.5\nmu_roll = -0.1"), "[contact] mu_roll must be >= 0"),
 ])
 def test_bad_files_fail_in_one_line_without_output(tmp_path, capsys, edit, message):
-    text = (GENERATED + "[test]\n").replace(*edit, 1)
+    text = GENERATED + "[test]\n"
+    for old, new in (edit if isinstance(edit[0], tuple) else (edit,)):
+        text = text.replace(old, new, 1)
     path = _write(tmp_path, text)
     assert _cmd(path) == 2
     err = capsys.readouterr().err

@@ -188,3 +188,13 @@ def test_the_field_plot_shows_void_ratio_only_where_every_point_ran_its_rve():
         values, title, _, limits = _second_panel(dem, v)
         assert title.startswith("share of Gauss points") and values is dem
         assert limits == (0.0, 1.0)
+
+
+def test_micro_rolling_resistance_keys():
+    """[micro] mu_roll gives the RVEs' law rolling resistance; refused with polygons."""
+    micro = {**DEMO["micro"], "mu_roll": 0.1, "eta_roll": 0.3}
+    p = validate_problem({**DEMO, "micro": micro})
+    assert (p["micro"]["mu_roll"], p["micro"]["eta_roll"]) == (0.1, 0.3)
+    with pytest.raises(SceneError, match=r"\[micro\] mu_roll: rolling resistance acts "
+                                         "between spheres and disks"):
+        validate_problem({**DEMO, "micro": {**micro, "shape": "polygon"}})

@@ -249,6 +249,33 @@ def test_shear_band_problem_puts_its_weak_spot_on_the_left_side():
     assert prob["imperfection"][0]["mu"] == 0.5 * prob["micro"]["mu"]
 
 
+def test_retaining_wall_small_passive_pressure(tmp_path):
+    """The retaining-wall file at small size (2 x 1 cells, 20-disk RVEs with rolling
+    resistance, the wall advanced 0.4 mm in two steps): at rest the wall carries the
+    RVEs' 100 kPa over its height, K = F / (q H) = 1 to 1 %, and K rises with every
+    step of the wall into the backfill; the base and far side carry the surcharge."""
+    import h5py
+
+    from hmm.run import run_problem
+
+    prob = _problem("retaining_wall")
+    assert prob["micro"]["mu_roll"] > 0.0 and prob["solver"]["kinematics"] == "finite"
+    q, (length, height) = prob["pressure"][0]["value"], prob["mesh"]["size"]
+    prob["mesh"]["cells"] = [2, 1]
+    prob["micro"]["count"] = 20
+    prob["load"]["steps"] = 2
+    wall = next(d for d in prob["dirichlet"] if d["boundary"] == "left")
+    wall["value"] = 0.0004
+    run_problem(prob, tmp_path, progress=False)
+    with h5py.File(tmp_path / "fields.h5") as f:
+        k = f["curve/force/left"][:, 0] / (q * height)
+        moved = f["curve/displacement/left"][:, 0]
+        base = f["curve/force/bottom"][0, 1]
+    assert k[0] == pytest.approx(1.0, abs=1e-2)
+    assert np.all(np.diff(moved) > 0.0) and np.all(np.diff(k) > 0.05)
+    assert base == pytest.approx(q * length, rel=1e-2)
+
+
 def test_strip_footing_small_load_settlement(tmp_path):
     """The footing file at small size (4 x 4 cells, 20-disk RVEs, 0.3 mm in two
     steps), under its finite kinematics and again under small kinematics: at the

@@ -61,9 +61,10 @@ def _law(c):
     if c["law"] == "linear":
         return LinearSpring(kn=c["kn"], kt=c["kt"], mu=c["mu"], gamma_n=c["gamma_n"],
                             gamma_t=c["gamma_t"], restitution=c["restitution"],
-                            rolling=rolling_spec(c))
+                            rolling=rolling_spec(c), limit_damping=c["limit_damping"])
     return HertzMindlin(young=c["young"], poisson=c["poisson"],
-                        restitution=c["restitution"], mu=c["mu"], rolling=rolling_spec(c))
+                        restitution=c["restitution"], mu=c["mu"], rolling=rolling_spec(c),
+                        limit_damping=c["limit_damping"])
 
 
 def make_packing(cfg):

@@ -25,6 +25,7 @@ import numpy as np
 
 from .._jit import kernel
 from .rolling import N_HIST as N_HIST_ROLLING
+from .restitution import clipped_damping
 from .rolling import as_rolling
 
 N_HIST = 3  # tangential spring vector
@@ -66,8 +67,9 @@ def tangential(hist, k, nx, ny, nz, tvx, tvy, tvz, kt, ct, cap, dt):
 def law_linear(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt):
     """Linear spring-dashpot normal force, tangential history spring, Coulomb cap.
 
-    ``p[a, b] = (kn [N/m], kt [N/m], gamma_n [N s/m], gamma_t [N s/m], zeta [-], mu [-])``
-    for materials ``a``, ``b``.
+    ``p[a, b] = (kn [N/m], kt [N/m], gamma_n [N s/m], gamma_t [N s/m], zeta [-], mu [-],
+    limit [-])`` for materials ``a``, ``b``; ``limit`` 1 clips the normal force at zero
+    (``limit_damping``).
     The normal dashpot is ``gamma_n + 2 zeta sqrt(kn m_eff)``: a fixed coefficient
     (paper eq 19) plus a damping ratio (restitution-based, as in LAMMPS/LIGGGHTS).
     The paper's elastic law (eqs 16-18) is this law with both dashpots zero. The
@@ -80,6 +82,8 @@ def law_linear(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt):
     cn = gn + 2.0 * zeta * math.sqrt(kn * m_eff)
     vn = vx * nx + vy * ny + vz * nz
     fn = kn * ov - cn * vn  # approaching (vn < 0) adds repulsion
+    if p[a, b, 6] > 0.0 and fn < 0.0:  # limit_damping: the dashpot never pulls
+        fn = 0.0
     tvx, tvy, tvz = vx - vn * nx, vy - vn * ny, vz - vn * nz
     # tangential spring: rotate into the current tangent plane, then grow
     ftx, fty, ftz = tangential(hist, k, nx, ny, nz, tvx, tvy, tvz, kt, gt, mu * max(fn, 0.0),
@@ -103,8 +107,10 @@ def energy_linear(ov, r_eff, p, hist, k):
 def law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k, dt):
     """Hertz normal force, Mindlin (no-slip) tangential stiffness, restitution damping.
 
-    ``p[a, b] = (E* [Pa], G* [Pa], beta [-], mu [-])`` with ``beta = ln e / sqrt(ln^2 e + pi^2)``
-    (negative). With ``a = sqrt(r_eff ov)``: ``Sn = 2 E* a``, ``St = 8 G* a``,
+    ``p[a, b] = (E* [Pa], G* [Pa], beta [-], mu [-], limit [-])`` with
+    ``beta = ln e / sqrt(ln^2 e + pi^2)`` (negative; with ``limit`` 1 the normal force is
+    clipped at zero and ``beta`` is the one that rebounds with ``e``). With
+    ``a = sqrt(r_eff ov)``: ``Sn = 2 E* a``, ``St = 8 G* a``,
     ``fn = 4/3 E* a ov - 2 sqrt(5/6) beta sqrt(Sn m_eff) vn`` and the tangential spring
     force ``-St s - 2 sqrt(5/6) beta sqrt(St m_eff) vt``, capped by Coulomb at
     ``mu max(fn, 0)`` (the forms used by LIGGGHTS' hertz model and YADE's
@@ -120,6 +126,8 @@ def law_hertz_mindlin(ov, nx, ny, nz, vx, vy, vz, r_eff, m_eff, p, a, b, hist, k
     ct = c * math.sqrt(st_k * m_eff)
     vn = vx * nx + vy * ny + vz * nz
     fn = 4.0 / 3.0 * es * rad * ov - cn * vn
+    if p[a, b, 4] > 0.0 and fn < 0.0:  # limit_damping: the dashpot never pulls
+        fn = 0.0
     tvx, tvy, tvz = vx - vn * nx, vy - vn * ny, vz - vn * nz
     ftx, fty, ftz = tangential(hist, k, nx, ny, nz, tvx, tvy, tvz, st_k, ct,
                                mu * max(fn, 0.0), dt)
@@ -159,7 +167,7 @@ def normal_stiffness(code, ov, r_eff, p, a, b):
 @kernel(inline=True)
 def row_size(code):
     """Length of the law's own parameter row: the rolling parameters follow it."""
-    return 6 if code == 0 else 4
+    return 7 if code == 0 else 5
 
 
 @kernel
@@ -288,6 +296,11 @@ class LinearSpring(Law):
         with ``e`` whatever the masses (LAMMPS/LIGGGHTS convention).
     rolling : Rolling or dict, optional
         Rolling (and twisting) resistance (:class:`~dem.contact.rolling.Rolling`).
+    limit_damping : bool, optional
+        Clip the normal force at zero, so that the normal dashpot never pulls (LAMMPS'
+        ``limit_damping``); the damping ratio is then the one that rebounds with
+        ``restitution`` (:mod:`dem.contact.restitution`; a ``gamma_n`` adds to it as
+        given).
 
     Examples
     --------
@@ -302,7 +315,7 @@ class LinearSpring(Law):
     energy = staticmethod(energy_linear)
 
     def __init__(self, kn, kt=0.0, mu=0.0, gamma_n=0.0, gamma_t=0.0, restitution=1.0,
-                 rolling=None):
+                 rolling=None, limit_damping=False):
         self.kn = _check("kn", kn, strict=True)
         self.kt = _check("kt", kt)
         self.mu = _check("mu", mu)
@@ -312,13 +325,18 @@ class LinearSpring(Law):
         if not (0.0 < e <= 1.0):
             raise ValueError(f"restitution must be in (0, 1], got {restitution}")
         self.restitution = e
-        self.zeta = -math.log(e) / math.sqrt(math.pi**2 + math.log(e) ** 2)
+        self.limit_damping = bool(limit_damping)
+        self.zeta = (clipped_damping("linear", e) if self.limit_damping
+                     else -math.log(e) / math.sqrt(math.pi**2 + math.log(e) ** 2))
         self._args = {"kn": self.kn, "kt": self.kt, "mu": self.mu, "gamma_n": self.gamma_n,
                       "gamma_t": self.gamma_t, "restitution": e}
+        if self.limit_damping:
+            self._args["limit_damping"] = True
         self._set_rolling(rolling)
 
     def row(self):
-        return np.array([self.kn, self.kt, self.gamma_n, self.gamma_t, self.zeta, self.mu])
+        return np.array([self.kn, self.kt, self.gamma_n, self.gamma_t, self.zeta, self.mu,
+                         float(self.limit_damping)])
 
     def critical_stiffness(self, r_ref):
         return max(self.kn, self.kt)
@@ -360,6 +378,10 @@ class HertzMindlin(Law):
         stiffness (default 0.05).
     rolling : Rolling or dict, optional
         Rolling (and twisting) resistance (:class:`~dem.contact.rolling.Rolling`).
+    limit_damping : bool, optional
+        Clip the normal force at zero, so that the normal dashpot never pulls (LAMMPS'
+        ``limit_damping``); ``beta`` is then the one whose collision rebounds with
+        ``restitution`` exactly (:mod:`dem.contact.restitution`), at any speed.
 
     Examples
     --------
@@ -375,7 +397,8 @@ class HertzMindlin(Law):
     stiffness = staticmethod(stiffness_hertz_mindlin)
     energy = staticmethod(energy_hertz_mindlin)
 
-    def __init__(self, young, poisson, restitution, mu, overlap_ref=0.05, rolling=None):
+    def __init__(self, young, poisson, restitution, mu, overlap_ref=0.05, rolling=None,
+                 limit_damping=False):
         e1, e2 = np.broadcast_to(np.asarray(young, dtype=float), (2,))
         n1, n2 = np.broadcast_to(np.asarray(poisson, dtype=float), (2,))
         for v in (e1, e2):
@@ -392,14 +415,19 @@ class HertzMindlin(Law):
         self.mu = _check("mu", mu)
         self.e_star = float(1.0 / ((1 - n1**2) / e1 + (1 - n2**2) / e2))
         self.g_star = float(1.0 / (2 * (2 - n1) * (1 + n1) / e1 + 2 * (2 - n2) * (1 + n2) / e2))
-        self.beta = math.log(e) / math.sqrt(math.log(e) ** 2 + math.pi**2)
+        self.limit_damping = bool(limit_damping)
+        self.beta = (-clipped_damping("hertz", e) / math.sqrt(5.0) if self.limit_damping
+                     else math.log(e) / math.sqrt(math.log(e) ** 2 + math.pi**2))
         self.overlap_ref = _check("overlap_ref", overlap_ref, strict=True)
         self._args = {"young": [float(e1), float(e2)], "poisson": [float(n1), float(n2)],
                       "restitution": e, "mu": self.mu, "overlap_ref": self.overlap_ref}
+        if self.limit_damping:
+            self._args["limit_damping"] = True
         self._set_rolling(rolling)
 
     def row(self):
-        return np.array([self.e_star, self.g_star, self.beta, self.mu])
+        return np.array([self.e_star, self.g_star, self.beta, self.mu,
+                         float(self.limit_damping)])
 
     def critical_stiffness(self, r_ref):
         a = math.sqrt(r_ref * self.overlap_ref * r_ref)

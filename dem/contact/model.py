@@ -31,7 +31,7 @@ class ContactModel:
     >>> from dem.contact.laws import LinearSpring
     >>> model = ContactModel(LinearSpring(kn=1e5, kt=5e4, mu=0.3))
     >>> model.table("pp", 2).shape
-    (2, 2, 6)
+    (2, 2, 7)
     """
 
     def __init__(self, law, wall_law=None):

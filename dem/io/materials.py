@@ -228,6 +228,8 @@ def _law(table, where, ctx, **own):
         spec = {"young": [table["young"], wall_young],
                 "poisson": [table["poisson"], wall_nu],
                 "restitution": c["restitution"], "mu": c["mu"]}
+    if c.get("limit_damping"):
+        spec["limit_damping"] = True
     roll = rolling_spec(c)
     if roll is not None:
         spec["rolling"] = roll

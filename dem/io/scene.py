@@ -220,6 +220,10 @@ SCHEMA = {
                   doc="Coulomb friction coefficient."),
         "restitution": Key("float", default=1.0, range=UNIT_OPEN_CLOSED,
                            doc="Normal coefficient of restitution."),
+        "limit_damping": Key("bool", default=False,
+                             doc="Clip the normal force at zero (the dashpot never pulls), "
+                                 "the damping remapped so that a collision still rebounds "
+                                 "with the restitution (LAMMPS' limit_damping)."),
         **ROLLING_KEYS,
     }),
     "output": Section(doc="HDF5 output written by `dem run`.", keys={

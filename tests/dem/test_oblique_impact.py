@@ -92,3 +92,37 @@ def test_the_issue_case_and_a_sticking_one():
     jn, jn_plus, jt, spin, vn, _ = impact(laws(0.3, 0.3)["hertz_mindlin"], 10.0)
     assert 0.0 < jt < 0.3 * jn_plus * 0.9
     assert spin > 0.0 and np.isfinite(spin)
+
+
+@pytest.mark.parametrize("name", ["hertz_mindlin", "linear"])
+def test_limit_damping_rebounds_with_e_and_slides_with_mu(name):
+    """With the normal force clipped at zero (limit_damping) the dashpot never pulls:
+    the whole normal impulse is compressive, the damping is remapped so that a head-on
+    impact rebounds with e (dem.contact.restitution), and in gross sliding the
+    tangential impulse is mu times the whole normal impulse, the rebound spin
+    2.5 mu (1 + e) v_n / R."""
+    for e in (0.3, 0.7):
+        law = laws(e, 0.3)[name]
+        clipped = dem.contact.laws.law_from_spec({**law.spec(), "limit_damping": True})
+        _, _, _, _, vn, vn_after = impact(clipped, 0.0)
+        # to the default step's accuracy (about 22 steps per contact: under 1 %)
+        assert vn_after / vn == pytest.approx(e, rel=1e-2), e
+        jn, jn_plus, jt, spin, vn, _ = impact(clipped, 70.0)
+        assert jn_plus == pytest.approx(jn, rel=1e-9)
+        assert jt == pytest.approx(0.3 * jn, rel=1e-2)
+        assert spin == pytest.approx(2.5 * 0.3 * (1.0 + e) * vn / R, rel=2e-2)
+        # without the clip the pull at the end of a low-e contact carries no friction
+        jn, jn_plus, jt, _, _, _ = impact(law, 70.0)
+        assert (jn_plus / jn > 1.03) == (e < 0.5)
+
+
+def test_the_clipped_damping_inverts_the_rebound():
+    from dem.contact.restitution import clipped_damping, clipped_rebound, unclipped_ratio
+
+    for kind in ("linear", "hertz"):
+        for e in (0.1, 0.5, 0.95):
+            assert clipped_rebound(kind, clipped_damping(kind, e)) == pytest.approx(e, 1e-9)
+    # the clip makes the rebound faster: more damping for the same e
+    assert clipped_damping("linear", 0.5) > unclipped_ratio(0.5)
+    with pytest.raises(ValueError, match=r"restitution must be in \(0, 1\]"):
+        clipped_damping("linear", 0.0)

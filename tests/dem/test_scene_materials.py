@@ -118,15 +118,17 @@ def test_the_walls_law_may_be_of_another_kind(tmp_path):
 
 def test_rolling_resistance_from_the_contact_table_and_a_wall(tmp_path):
     """[contact] mu_roll and eta_roll give the laws rolling resistance (k_roll defaults
-    to 2.25 mu_roll^2); a wall's own mu_roll replaces it for that wall."""
+    to 2.25 mu_roll^2); a wall's own mu_roll replaces it for that wall; limit_damping
+    sets the law's clip."""
     scene = base_scene()
-    scene["contact"].update({"mu_roll": 0.2, "eta_roll": 0.3})
+    scene["contact"].update({"mu_roll": 0.2, "eta_roll": 0.3, "limit_damping": True})
     scene["walls"][0]["mu_roll"] = 0.05
     sim = build(tmp_path, scene)
     assert sim.model.rolling and sim.model.n_hist == 10
     pp = sim.parameter_table("pp")[0, 0]
     np.testing.assert_allclose(pp[-5:], [0.2, 2.25 * 0.2**2, 0.3, 0.0, 0.0])
     np.testing.assert_allclose(pw_row(sim, 0)[-5:], [0.05, 2.25 * 0.05**2, 0.3, 0.0, 0.0])
+    assert pp[6] == 1.0 and sim.model.kind("pp")(kn=1.0).row()[6] == 0.0  # limit_damping
     # without the keys: no rolling, and the short history rows
     plain = build(tmp_path, base_scene())
     assert not plain.model.rolling and plain.model.n_hist == 3

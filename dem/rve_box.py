@@ -52,7 +52,8 @@ from .contact.laws import Law, law_from_spec
 from .contact.model import ContactModel
 from .observers import contact_summary
 from .packings import cloud_lengths, particle_radii, random_addition, solid_volume
-from .rve import RelaxationError, check_settings, scale_masses, store_settings
+from .rve import RelaxationError
+from .rve_settings import check_settings, scale_masses, store_settings
 from .shapes import Shape
 from .simulation import Simulation
 from .state import Bodies

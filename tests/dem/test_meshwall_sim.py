@@ -207,6 +207,26 @@ def test_checkpoint_restart_changes_no_bit(tmp_path):
         np.testing.assert_array_equal(v, whole[k], err_msg=k)
 
 
+def test_output_frames_show_the_mesh_walls_where_they_are(tmp_path):
+    """H5Writer frames hold the mesh walls' triangles at each frame, and the meshes'
+    XDMF file describes them (meshio reads it back, the points moving)."""
+    import meshio
+
+    sim = _box_scene()
+    path = tmp_path / "run.h5"
+    with dem.io.H5Writer(path, every=100) as out:
+        sim.observers.append(out)
+        sim.run(200)
+    with meshio.xdmf.TimeSeriesReader(str(tmp_path / "run_meshes.xdmf")) as reader:
+        points, cells = reader.read_points_cells()
+        frames = [reader.read_data(k) for k in range(reader.num_steps)]
+    assert cells[0].type == "triangle" and cells[0].data.shape == (10, 3)
+    assert len(frames) == 2
+    last = frames[-1][1]["position"]
+    np.testing.assert_array_equal(last, sim.mesh_walls[0].vertices)
+    assert not np.array_equal(frames[0][1]["position"], last)  # it turned
+
+
 def test_bad_mesh_walls_are_one_line_errors(tmp_path):
     disks = dem.Bodies.spheres([[0.0, 0.1]], radius=R, density=RHO)
     square = dem.MeshWall(SQUARE_V, SQUARE_F)

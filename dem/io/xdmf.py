@@ -3,8 +3,8 @@ output.
 
 One HDF5 file gets up to five XDMF files, each a temporal collection with one grid per
 frame (``run.h5`` -> ``run.xdmf``, ``run_shapes.xdmf``, ``run_contacts.xdmf``,
-``run_walls.xdmf``, ``run_meshes.xdmf``; see :func:`xdmf_files`). One collection per file because meshio's
-``TimeSeriesReader`` reads a single collection:
+``run_walls.xdmf``, ``run_meshes.xdmf``; see :func:`xdmf_files`). One collection per
+file because meshio's ``TimeSeriesReader`` reads a single collection:
 
 particles (``run.xdmf``)
     ``Polyvertex`` grids of every particle (every body but the walls): points the

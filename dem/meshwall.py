@@ -7,7 +7,8 @@ volume; it moves rigidly (:meth:`MeshWall.translated`, :meth:`MeshWall.rotated`,
 :meth:`MeshWall.moved` by its prescribed velocity and angular velocity); it finds the
 faces near spheres (a uniform grid) and every contact of a sphere with it
 (:func:`dem.meshwall_kernels.sphere_mesh_contacts`, whose module states the rule for
-edges and vertices). It is not yet a wall of :class:`dem.Simulation`.
+edges and vertices). Passed to :class:`dem.Simulation` (``walls=[...]``) it is a wall
+of the time step (:mod:`dem.mesh_scene`).
 
 >>> cube = MeshWall(CUBE_VERTICES, CUBE_FACES)
 >>> cube
@@ -29,7 +30,7 @@ from .meshwall_kernels import (FaceGrid, MeshArrays, faces_near_spheres, fill_fa
                                sphere_mesh_contacts)
 from .rotation import quat_to_matrix
 
-__all__ = ["CUBE_FACES", "CUBE_VERTICES", "MeshContacts", "MeshWall"]
+__all__ = ["CUBE_FACES", "CUBE_VERTICES", "MeshContacts", "MeshWall", "face_grid"]
 
 log = logging.getLogger(__name__)
 
@@ -136,6 +137,8 @@ class MeshWall:
     center : (3,) float [m], optional
         Point the wall turns about, moving with ``velocity``; the centre of the
         bounding box by default.
+    mat_id : int, optional
+        Material row of the wall in the contact model's ``"pw"`` table (0 by default).
 
     Raises
     ------
@@ -162,7 +165,8 @@ class MeshWall:
         The faces around each vertex, the same way.
     """
 
-    def __init__(self, vertices, faces, velocity=None, angular_velocity=None, center=None):
+    def __init__(self, vertices, faces, velocity=None, angular_velocity=None, center=None,
+                 mat_id=0):
         v, f = _checked_arrays(vertices, faces)
         self.vertices, self.faces = v, f
         self.bounds = np.array([v.min(axis=0), v.max(axis=0)])
@@ -177,6 +181,9 @@ class MeshWall:
         self.velocity = _vector3(velocity, "velocity")
         self.angular_velocity = _vector3(angular_velocity, "angular_velocity")
         self.center = _vector3(center, "center", default=self.bounds.mean(axis=0))
+        if isinstance(mat_id, bool) or not isinstance(mat_id, (int, np.integer)) or mat_id < 0:
+            raise ValueError(f"mesh wall mat_id must be an integer >= 0, got {mat_id!r}")
+        self.mat_id = int(mat_id)
         self._topology()
         self._grids = {}
 
@@ -302,23 +309,7 @@ class MeshWall:
             return self._grids[margin]
         if not (np.isfinite(margin) and margin >= 0.0):
             raise ValueError(f"mesh wall margin must be finite and >= 0, got {margin}")
-        tri = self.vertices[self.faces]
-        face_lo = np.ascontiguousarray(tri.min(axis=1) - margin)
-        face_hi = np.ascontiguousarray(tri.max(axis=1) + margin)
-        lo, hi = face_lo.min(axis=0), face_hi.max(axis=0)
-        span = np.maximum(hi - lo, 1e-300)
-        typical = float(np.median((face_hi - face_lo).max(axis=1)))
-        cell = max(typical, float(np.prod(span) / self.n_faces) ** (1.0 / 3.0),
-                   float(span.max()) / 1024.0)
-        dims = np.maximum(np.ceil(span / cell).astype(np.int64), 1)
-        cell_ptr = np.zeros(int(np.prod(dims)) + 1, dtype=np.int64)
-        cell_faces = np.zeros(8 * self.n_faces, dtype=np.int64)
-        need = fill_face_grid(lo, cell, dims, face_lo, face_hi, cell_ptr, cell_faces)
-        if need > cell_faces.shape[0]:
-            cell_faces = np.zeros(need, dtype=np.int64)
-            fill_face_grid(lo, cell, dims, face_lo, face_hi, cell_ptr, cell_faces)
-        grid = FaceGrid(lo, cell, dims, cell_ptr, cell_faces[:need], face_lo, face_hi,
-                        np.full(self.n_faces, -1, dtype=np.int64))
+        grid = face_grid(self.vertices, self.faces, margin)
         self._grids[margin] = grid
         return grid
 
@@ -398,6 +389,30 @@ class MeshWall:
             raise ValueError(f"mesh file {path} is not watertight: "
                              f"{wall.open_edges()} open edges")
         return wall
+
+
+def face_grid(vertices, faces, margin):
+    """The :class:`~dem.meshwall_kernels.FaceGrid` of the triangles ``faces`` (nf, 3)
+    over ``vertices`` (nv, 3) [m], their boxes grown by ``margin`` [m] (see
+    :meth:`MeshWall.grid`)."""
+    tri = vertices[faces]
+    n_faces = faces.shape[0]
+    face_lo = np.ascontiguousarray(tri.min(axis=1) - margin)
+    face_hi = np.ascontiguousarray(tri.max(axis=1) + margin)
+    lo, hi = face_lo.min(axis=0), face_hi.max(axis=0)
+    span = np.maximum(hi - lo, 1e-300)
+    typical = float(np.median((face_hi - face_lo).max(axis=1)))
+    cell = max(typical, float(np.prod(span) / n_faces) ** (1.0 / 3.0),
+               float(span.max()) / 1024.0)
+    dims = np.maximum(np.ceil(span / cell).astype(np.int64), 1)
+    cell_ptr = np.zeros(int(np.prod(dims)) + 1, dtype=np.int64)
+    cell_faces = np.zeros(8 * n_faces, dtype=np.int64)
+    need = fill_face_grid(lo, cell, dims, face_lo, face_hi, cell_ptr, cell_faces)
+    if need > cell_faces.shape[0]:
+        cell_faces = np.zeros(need, dtype=np.int64)
+        fill_face_grid(lo, cell, dims, face_lo, face_hi, cell_ptr, cell_faces)
+    return FaceGrid(lo, cell, dims, cell_ptr, cell_faces[:need], face_lo, face_hi,
+                    np.full(n_faces, -1, dtype=np.int64))
 
 
 def _read_triangles(path):

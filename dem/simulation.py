@@ -11,6 +11,7 @@ from .boundary import PeriodicCell
 from .contact.loops import stepper
 from .contact.sphere_contacts import N_BLOCKS, InnerIndex, inner_index
 from .contact.model import ContactModel
+from .mesh_scene import MeshScene
 from .neighbors import NeighborList, carry_history, incidence
 from .shape_scene import ShapeScene
 from .shapes import Shape
@@ -41,7 +42,7 @@ class SimulationError(RuntimeError):
     """A run stopped on a physical failure (non-finite state, excessive overlap)."""
 
 
-class Simulation(ShapeScene):
+class Simulation(ShapeScene, MeshScene):
     """A DEM scene advanced in time.
 
     Parameters
@@ -78,6 +79,9 @@ class Simulation(ShapeScene):
         ADMM iteration cap per solve (a warm solve retries cold after at most
         ``dem.contact.detection.admm.WARM_MAX_ITER`` = 50 of them; a cold one that
         hits the cap stops the run, naming the pair).
+    walls : sequence of MeshWall, optional
+        Triangle-mesh walls (3D sphere scenes; :mod:`dem.mesh_scene`). They move with
+        their prescribed motion and are moved in place.
     threads : int, optional
         Threads for the compiled loops; default all of numba's threads for scenes of
         at least ``PARALLEL_MIN_BODIES`` bodies, else 1 (threads only cost time on
@@ -91,7 +95,7 @@ class Simulation(ShapeScene):
     def __init__(self, bodies, model, dt=None, gravity=None, damping=0.0, skin=None,
                  box=None, neighbor_backend="cell", overlap_limit=0.5, observers=(),
                  controllers=(), state_objects=(), allow_unstable_dt=False, threads=None,
-                 detection="auto", admm_tol=1e-8, admm_max_iter=200):
+                 detection="auto", admm_tol=1e-8, admm_max_iter=200, walls=()):
         if not isinstance(model, ContactModel):
             model = ContactModel(model)
         self.bodies = bodies
@@ -158,12 +162,13 @@ class Simulation(ShapeScene):
         self.admm_tol = float(admm_tol)
         self.admm_max_iter = int(admm_max_iter)
         self.shaped = bodies.has_shapes
+        self._mesh_setup(walls, periodic)
         if self.shaped:
             self._shape_setup(periodic)
         else:
             self._kernel = stepper(self.dim, model.kind("pp").code, model.kind("pw").code,
                                    periodic=periodic, deform=self.cell is not None,
-                                   rolling=model.rolling)
+                                   rolling=model.rolling, mesh=self.has_mesh)
         d = self.dim
         self._lgrad = self.cell.lgrad if self.cell is not None else np.zeros((d, d))
         self._cellref = np.zeros((2, d, d))  # H^-1 at the Verlet build, at the inner list
@@ -173,7 +178,7 @@ class Simulation(ShapeScene):
     # ------------------------------------------------------------------ set-up
     def _refresh_tables(self):
         b = self.bodies
-        n_mat = int(b.mat_id.max()) + 1 if b.n else 1
+        n_mat = max(int(b.mat_id.max()) + 1 if b.n else 1, self._mesh_n_mat())
         self._params_pp = self.model.table("pp", n_mat)
         self._params_pw = self.model.table("pw", n_mat)
         with np.errstate(divide="ignore"):
@@ -212,6 +217,7 @@ class Simulation(ShapeScene):
             self._shape_rebuild(old)
         else:
             self._index()
+            self._mesh_rebuild()
         self._radius_ref = b.radius.copy()
 
     def _row_counts(self):
@@ -255,7 +261,8 @@ class Simulation(ShapeScene):
             self.wall_state, InnerIndex(self._contrib, self._slot, self._inc_start,
                                         self._blk_start, self._inner, self._n_inner,
                                         self._pos_inner, self._wstart),
-            self._params_pp, self._params_pw, self._status, self.wall_work)
+            self._params_pp, self._params_pw, self._status, self.wall_work,
+            self._mesh_loop())
 
     def _settings(self):
         return StepSettings(self.dt, self.gravity, self.damping, self.neighbors.skin,
@@ -373,6 +380,8 @@ class Simulation(ShapeScene):
             if not resume:  # a chunk resumed mid-step keeps the snapshot of its start
                 snapshot = self._snapshot_bodies()
             done = self._call(n, False, resume)
+            if self.has_mesh:
+                self._mesh_sync()
             self.n_inner_refreshes += int(self._status[3])
             self.step += done
             self.time = self.step * self.dt
@@ -389,7 +398,10 @@ class Simulation(ShapeScene):
         if code == OK:
             return
         i, j = int(self._status[1]), int(self._status[2])
-        if code == OVERLAP:
+        if code == OVERLAP and j < 0:
+            msg = (f"overlap between body {i} and mesh wall {-1 - j} exceeds "
+                   f"{self.overlap_limit:g} x its radius at step {self.step}")
+        elif code == OVERLAP:
             msg = (f"overlap between bodies {i} and {j} exceeds {self.overlap_limit:g} x the "
                    f"smaller radius at step {self.step}: dt = {self.dt:.4g} s may be too "
                    f"large or the bodies too fast (critical step {self.dt_crit:.4g} s)")
@@ -461,6 +473,7 @@ class Simulation(ShapeScene):
         src["radius_ref"] = self._radius_ref
         src["clock"] = np.array([self.step, nl.n_builds, nl.capacity], np.int64)
         src["wall_work"] = self.wall_work
+        src.update(self._mesh_state_arrays())
         if not self.shaped:
             src.update(n_inner=self._n_inner, inner=self._inner, pos_inner=self._pos_inner)
         if self.cell is not None:
@@ -517,6 +530,7 @@ class Simulation(ShapeScene):
         self.step, nl.n_builds, nl.capacity = (int(x) for x in snap["clock"])
         self.time = self.step * self.dt
         np.copyto(self.wall_work, snap["wall_work"])
+        self._mesh_restore(snap)
         if self.cell is not None:
             np.copyto(self.cell.h, snap["cell_h"])
             np.copyto(self.cell.lgrad, snap["cell_lgrad"])

@@ -323,3 +323,14 @@ def test_strip_footing_small_load_settlement(tmp_path):
         assert -syy[under].min() > -syy[beside].max()
         loads[kin] = force
     assert np.abs(loads["finite"] - loads["small"]).max() < 0.02 * np.abs(loads["small"]).max()
+
+
+# ------------------------------------------------------------------ rotating drum
+def test_rotating_drum_holds_and_lifts_its_bed():
+    ex = run_example("rotating_drum")
+    r, tol = ex["R"], 0.05 * ex["R"]  # a contact overlaps a few per cent of a radius
+    assert ex["reach"] < ex["DRUM_R"] - r + tol  # inside the turning mesh
+    assert ex["span_y"] < 0.5 * ex["DEPTH"] - r + tol  # and between its end caps
+    assert ex["lean"] > 10.0  # the bed leans towards the rising side (-x)
+    assert ex["torque_mean"] < 0.0  # the bed brakes the drum turning about +y
+    assert ex["drum_work"] > ex["energy_gain"] > -0.5 * ex["drum_work"]

@@ -16,14 +16,17 @@ One step, in this order (the ``Simulation.run`` contract):
    stop with status ``REBUILD``; Python rebuilds the list and calls again with
    ``resume=True``, which finishes this step from 3;
 3. sphere-sphere contacts: overlap, relative velocity at the contact point, law;
-4. sphere-wall contacts, likewise;
+4. sphere-wall contacts, likewise, then sphere-mesh contacts (scenes with mesh walls,
+   whose vertices moved after the drift of 1: a wall that moved half the skin since
+   the Verlet build also stops the chunk with ``REBUILD``);
 5. per body: sum of contact forces, gravity, local damping, second half kick.
 
 Summation order is fixed, so results do not depend on the number of threads. Bodies
 fall into ``N_BLOCKS`` blocks of consecutive rows (a fixed number, whatever the thread
 count); a contact inside one block is *internal*, others are *cross*. Every body sums
 its internal contacts in pair order, then its cross contacts in pair order, then its
-walls. On one thread, 3 and 4 add each contact to its bodies as they go, in that order.
+walls, then its mesh rows in row order. On one thread, 3 and 4 add each contact to its
+bodies as they go, in that order (mesh rows: their sum per sphere, last).
 On several threads, the internal contacts run in parallel over blocks, each block adding
 into its own bodies; the cross contacts run in parallel over pairs and write their two
 contributions to rows laid out body by body in pair order; 5 adds each body's rows and
@@ -41,13 +44,14 @@ from .._jit import kernel
 from ..status import NONFINITE, OK, REBUILD
 from .kinematics import (_cell_map, _cell_start, _deform_cell, _drift_body, _finish_body,
                          _strain_norm, cell_spin, moved2)
+from .mesh_contacts import mesh_forces, mesh_power, move_meshes
 from .sphere_contacts import (N_BLOCKS, _compact_inner, _near, _scatter_pair, _sphere_pair,
                               _sphere_wall)
 
 _STEPPERS = {}
 
 
-def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False):
+def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, mesh=False):
     """The compiled multi-step kernel for ``dim`` (2 or 3) and two law codes.
 
     ``law_pp``/``law_pw`` are law codes (a law class's ``code``: 0 linear, 1
@@ -58,19 +62,22 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False):
     Verlet build and at the inner list's making; an orthogonal periodic box passes
     ``is_cell`` false and a zero ``lgrad``, and every affine term adds an exact zero.
     ``rolling`` compiles in rolling resistance (:mod:`dem.contact.rolling`), whose
-    parameters follow the law's in the parameter tables.
+    parameters follow the law's in the parameter tables. ``mesh`` compiles in the
+    contacts with triangle-mesh walls (:mod:`dem.contact.mesh_contacts`): their motion
+    after the drift, their forces after the plane walls' in every body's sum.
     Only integers are captured, so the kernel caches on disk; the branches not taken
     fold away at compile time.
     """
-    key = (int(dim), int(law_pp), int(law_pw), bool(periodic or deform), bool(rolling))
+    key = (int(dim), int(law_pp), int(law_pw), bool(periodic or deform), bool(rolling),
+           bool(mesh))
     if key in _STEPPERS:
         return _STEPPERS[key]
-    DIM, PP, PW, PERIODIC, ROLL = key
+    DIM, PP, PW, PERIODIC, ROLL, MESH = key
     DEFORM = PERIODIC
 
     @kernel(parallel=True)
     def run_steps(n_steps, prime, resume, serial, settings, body, cell, nbr, pstate,
-                  wstate, index, params_pp, params_pw, status_out, work_out):
+                  wstate, index, params_pp, params_pw, status_out, work_out, meshes):
         """Advance ``n_steps``; returns the number of completed steps.
 
         The arrays come in bundles (:mod:`dem.state`): ``settings``
@@ -87,7 +94,8 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False):
         ``serial`` = True takes the one-thread path (the caller knows the thread
         count; asking numba from here would make the kernel uncacheable).
         ``status_out`` (4,) int64 receives (code, i, j, inner-list refreshes); ``work_out`` (1,)
-        accumulates the work of walls on bodies [J].
+        accumulates the work of walls on bodies [J]. ``meshes`` is the
+        :class:`~dem.contact.mesh_contacts.MeshLoop` (empty arrays unless ``mesh``).
         """
         dt, gravity, damping, skin, overlap_limit, skin_inner, grow = settings
         (pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass, inv_inertia,
@@ -97,6 +105,8 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False):
         hist, touch, fpair = pstate
         whist, wforce, wtorque = wstate
         contrib, slot, inc_start, blk_start, inner, n_inner, pos_inner, wstart = index
+        msum = meshes.msum  # (n, 6) each sphere's mesh force and torque (arrays only
+        # enter the parallel loops)
         n = pos.shape[0]
         mw = wpairs.shape[0]
         status_out[0] = OK
@@ -140,6 +150,11 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False):
                 if 2.0 * (math.sqrt(maxd2) + grow) + strain * (2.0 * rmax + skin_inner) \
                         > skin_inner:
                     n_inner[0] = -1
+                if MESH:  # the walls move; their candidates hold while they moved < skin/2
+                    dw2 = move_meshes(dt, meshes.mesh, meshes.walls)
+                    if 2.0 * math.sqrt(dw2) + skin_inner > skin:
+                        status_out[0] = REBUILD
+                        return done
             if n_inner[0] < 0:
                 # refresh the inner list from the Verlet list, which must still hold
                 if DEFORM and is_cell:
@@ -169,6 +184,9 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False):
             n_tot = n_inner[0]
             n_int = n_inner[1]
             work = 0.0
+            if MESH:  # 4b. sphere-mesh rows, sphere by sphere (their sums added in 5)
+                mesh_forces(PW, ROLL, pos, vel, ang_vel, radius, inv_mass, inv_inertia,
+                            mat_id, meshes, params_pw, hdt, overlap_limit, status_out)
             if serial:
                 # ---- 3-5 on one thread: add each contact to its bodies as it comes,
                 # internal pairs first, then cross pairs (the order the threads use)
@@ -202,6 +220,11 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False):
                         torque[i, 1] += ty
                         torque[i, 2] += tz
                     work += power
+                if MESH:  # mesh walls last, as in the threaded sums
+                    for b in range(n):
+                        for a in range(3):
+                            force[b, a] += msum[b, a]
+                            torque[b, a] += msum[b, 3 + a]
                 for b in range(n):
                     fz = force[b, 2] if DIM == 3 else 0.0
                     ty = torque[b, 1] if DIM == 3 else 0.0
@@ -301,9 +324,18 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False):
                             fz += wforce[k, 2]
                             ty += wtorque[k, 1]
                             tz += wtorque[k, 2]
+                    if MESH:
+                        fx += msum[b, 0]
+                        fy += msum[b, 1]
+                        fz += msum[b, 2]
+                        tx += msum[b, 3]
+                        ty += msum[b, 4]
+                        tz += msum[b, 5]
                     _finish_body(b, DIM, fx, fy, fz, tx, ty, tz, kick, half, gravity,
                                  damping, mass, inv_mass, inv_inertia, is_fixed, vel,
                                  ang_vel, force, torque, status_out)
+            if MESH:
+                work += mesh_power(meshes)
             if not prime:
                 work_out[0] += work * dt
             if status_out[0] != OK:

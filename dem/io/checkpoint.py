@@ -17,6 +17,11 @@ A checkpoint is an HDF5 file holding the full state of a :class:`~dem.Simulation
                  inner (n_inner,) int64 and pos_inner (n, d): the pairs the step
                  loop evaluates and the positions they were chosen at (attr n_inner,
                  -1 when the list is due to be remade)
+    /meshes/     mesh walls (only if the scene has some; :mod:`dem.mesh_scene`): the
+                 combined mesh (vertices [m], faces, face_normal, the wall of each
+                 vertex and face, vert_ref [m]), each wall's center [m], velocity
+                 [m/s], ang_vel [rad/s] and mat_id, and the contact rows (mrows,
+                 mstart, mhist, mtouch, mpoint, mforce, mtorque, mpower)
     /model/      params_pp, params_pw: the parameter tables in use (a restart with
                  other tables is allowed but logged as a warning)
 
@@ -37,6 +42,7 @@ import h5py
 import numpy as np
 
 from ..boundary import PeriodicCell
+from ..mesh_scene import walls_from_snapshot
 from ..neighbors import Box
 from ..shapes import Shape
 from ..simulation import Simulation
@@ -302,6 +308,11 @@ def save_checkpoint(sim, path, extra=None, config=None):
             g.attrs["n_internal"] = n_internal
             g.create_dataset("inner", data=state["inner"][:max(n_inner, 0)])
             g.create_dataset("pos_inner", data=state["pos_inner"])
+        meshes = {k[5:]: v for k, v in state.items() if k.startswith("mesh.")}
+        if meshes:
+            g = f.create_group("meshes")
+            for name, v in meshes.items():
+                g.create_dataset(name, data=v)
         g = f.create_group("model")
         for bucket in ("pp", "pw"):
             g.create_dataset("params_" + bucket, data=sim.parameter_table(bucket))
@@ -352,7 +363,8 @@ def load_checkpoint(path, model, observers=(), controllers=(), state_objects=())
                      observers=observers, controllers=controllers,
                      state_objects=state_objects, allow_unstable_dt=True,
                      detection=a["detection"], admm_tol=a["admm_tol"],
-                     admm_max_iter=a["admm_max_iter"])
+                     admm_max_iter=a["admm_max_iter"],
+                     walls=walls_from_snapshot(state["meshes"]))
     sim.restore(_snapshot(state))
     for bucket in ("pp", "pw"):
         name = "params_" + bucket
@@ -449,7 +461,9 @@ def _read_checkpoint(path, f):
                   _checked(path, "box/periodic", g["periodic"], (d,), _B))
     model = {k: read_bounded(v, f"model/{k}") for k, v in f["model"].items()} \
         if "model" in f else {}
-    return {"attrs": attrs, "bodies": bodies, "gravity": gravity,
+    meshes = {"mesh." + k: np.asarray(v[()]) for k, v in f["meshes"].items()} \
+        if "meshes" in f else {}
+    return {"attrs": attrs, "bodies": bodies, "gravity": gravity, "meshes": meshes,
             "wall_work": wall_work, "neighbors": neighbors, "contacts": contacts,
             "radius_ref": radius_ref, "box": box, "cellref": cellref, "model": model,
             "inner": (n_inner, n_internal, inner, pos_inner)}
@@ -469,6 +483,7 @@ def _snapshot(state):
     snap["radius_ref"] = state["radius_ref"]
     snap["clock"] = np.array([a["step"], a["n_builds"], a["capacity"]], np.int64)
     snap["wall_work"] = state["wall_work"]
+    snap.update(state["meshes"])
     n_inner, n_internal, inner, pos_inner = state["inner"]
     snap["n_inner"] = np.array([n_inner, n_internal], np.int64)
     snap["inner"] = inner

@@ -24,6 +24,9 @@ shapes alike), in body order::
                                   other shapes
         force    (n, d)  float64  [N], total force of the last step
         walls/   id (nw,) int32, pos (nw, d) [m] (a point of the plane), normal (nw, d)
+        meshes/    (only in scenes with mesh walls) points (nv, 3) [m], cells (nf, 3)
+                   int64 triangles, wall (nf,) int32 (index in ``walls``), normal
+                   (nf, 3): every mesh wall where it is at this frame
         surface/   (only in frames holding boxes, polygons or polyhedra)
             points   (np, 3)  float64  [m], world-frame vertices (z = 0 in 2D), body
                                        after body, each in its shape-table order
@@ -111,6 +114,8 @@ UNITS = (
     (r"radius", "m", None),
     (r"(xdmf/)?force", "N", "total force on the body"),
     (r"walls/(xdmf/)?normal", ONE, "towards the particles' side"),
+    (r"meshes/points", "m", None),
+    (r"meshes/(cells|wall|normal)", ONE, None),
     (r"contacts/(xdmf/)?normal", ONE, "from i to j"),
     (r"contacts/overlap", "m", "positive in contact"),
     (r"contacts/(xdmf/)?force", "N", "force on j"),
@@ -206,6 +211,20 @@ def _copy(src, dst):
     except OSError as err:
         remove_quietly(dst)
         raise OutputError(src, err) from None
+
+
+def _write_meshes(g, walls):
+    """The mesh walls of a frame, as one set of triangles (``meshes/``)."""
+    if not walls:
+        return
+    offsets = np.cumsum([0] + [w.vertices.shape[0] for w in walls])
+    m = g.create_group("meshes")
+    m.create_dataset("points", data=np.concatenate([w.vertices for w in walls]))
+    m.create_dataset("cells", data=np.concatenate(
+        [w.faces + o for w, o in zip(walls, offsets, strict=False)]).astype(np.int64))
+    m.create_dataset("wall", data=np.concatenate(
+        [np.full(w.n_faces, k, np.int32) for k, w in enumerate(walls)]))
+    m.create_dataset("normal", data=np.concatenate([w.face_normal for w in walls]))
 
 
 def frame_name(index):
@@ -371,6 +390,7 @@ class H5Writer:
             for name, data in surf.items():
                 s.create_dataset(name, data=data)
         g.attrs["n_surface_cells"] = surf["cells"].shape[0]
+        _write_meshes(g, getattr(sim, "mesh_walls", ()))
         n_c = 0
         if self.contacts:
             n_c = self._write_contacts(g.create_group("contacts"), sim.contacts(), b)

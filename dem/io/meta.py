@@ -147,6 +147,15 @@ _ANY = r"(?:.*[/._])?"
 #: units of the arrays of a simulation's state, by name (a checkpoint's datasets,
 #: a snapshot's keys, an RVE's state inside an hmm checkpoint)
 STATE_UNITS = (
+    (r"(?:.*/)?meshes/(vertices|vert_ref|center|mpoint)", "m", None),
+    (r"(?:.*/)?meshes/mhist", "m", "tangential spring of the law's history"),
+    (r"(?:.*/)?meshes/velocity", "m/s", None),
+    (r"(?:.*/)?meshes/ang_vel", "rad/s", "right-handed"),
+    (r"(?:.*/)?meshes/mforce", "N", "on the sphere"),
+    (r"(?:.*/)?meshes/mtorque", "N m", "on the sphere"),
+    (r"(?:.*/)?meshes/mpower", "W", "of the wall's force on the sphere"),
+    (r"(?:.*/)?meshes/(faces|face_normal|mrows|mtouch|mstart|vert_wall|face_wall"
+     r"|mat_id)", ONE, None),
     (_ANY + r"(pos|pos_ref|pos_inner|radius|radius_ref|brad|part_off|part_rad|verts"
      r"|lo|hi|origin|h|param)", "m", None),
     (_ANY + r"(hist|whist)", "m", "tangential spring of the law's history"),

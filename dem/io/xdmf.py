@@ -1,10 +1,10 @@
 """XDMF 3 side files: ParaView (both XDMF readers) and meshio read :class:`~dem.io.H5Writer`
 output.
 
-One HDF5 file gets up to four XDMF files, each a temporal collection with one grid per
+One HDF5 file gets up to five XDMF files, each a temporal collection with one grid per
 frame (``run.h5`` -> ``run.xdmf``, ``run_shapes.xdmf``, ``run_contacts.xdmf``,
-``run_walls.xdmf``; see :func:`xdmf_files`). One collection per file because meshio's
-``TimeSeriesReader`` reads a single collection:
+``run_walls.xdmf``, ``run_meshes.xdmf``; see :func:`xdmf_files`). One collection per
+file because meshio's ``TimeSeriesReader`` reads a single collection:
 
 particles (``run.xdmf``)
     ``Polyvertex`` grids of every particle (every body but the walls): points the
@@ -29,6 +29,10 @@ contacts (``run_contacts.xdmf``)
 walls (``run_walls.xdmf``)
     Only when the scene has plane walls: each plane as a square (3D) or a segment (2D)
     around the particles, cell attributes ``id`` (body index) and ``normal``.
+meshes (``run_meshes.xdmf``)
+    Only when the scene has mesh walls (:class:`dem.MeshWall`): their triangles where
+    they are at each frame (``meshes/`` of each frame), cell attributes ``wall`` (the
+    wall's index in ``walls=[...]``) and ``normal``.
 
 Every grid also carries its points as the node attribute ``position`` [m]: meshio's
 ``TimeSeriesReader`` gives the points of the first grid only, and particles move (and
@@ -56,7 +60,7 @@ log = logging.getLogger(__name__)
 
 #: the collections, each in its own file: name -> suffix added to the stem
 COLLECTIONS = {"particles": "", "shapes": "_shapes", "contacts": "_contacts",
-               "walls": "_walls"}
+               "walls": "_walls", "meshes": "_meshes"}
 
 
 def xdmf_files(xdmf_path):
@@ -162,6 +166,14 @@ def _walls(series, g, name, base, h5, ref_file):
     grid.attribute("normal", f"{w}/xdmf/normal", "Cell")
 
 
+def _meshes(series, g, name, base, h5, ref_file):
+    m = f"{base}/meshes"
+    grid = _Grid(series, f"meshes_{name}", g.attrs["time"], h5, ref_file)
+    grid.mesh("Triangle", f"{m}/cells", f"{m}/points")
+    grid.attribute("wall", f"{m}/wall", "Cell")
+    grid.attribute("normal", f"{m}/normal", "Cell")
+
+
 #: collection -> (frame holds something to draw, grid builder)
 _BUILDERS = {
     "particles": (lambda g: g["pos"].shape[0] > 0, _particles),
@@ -169,6 +181,7 @@ _BUILDERS = {
     "contacts": (lambda g: int(g.attrs.get("n_contacts", 0)) > 0
                  and "xdmf" in g.get("contacts", {}), _contacts),
     "walls": (lambda g: "xdmf" in g["walls"], _walls),
+    "meshes": (lambda g: "meshes" in g, _meshes),
 }
 
 

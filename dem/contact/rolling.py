@@ -185,7 +185,7 @@ class Rolling:
 
     Examples
     --------
-    >>> Rolling(mu_roll=0.1).k_roll
+    >>> round(Rolling(mu_roll=0.1).k_roll, 12)
     0.0225
     """
 

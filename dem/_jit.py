@@ -25,8 +25,11 @@ Two things are compiled per scene rather than per package, both here:
 """
 
 import hashlib
+import importlib
 import logging
 import os
+import pickle
+import subprocess
 import sys
 import types as pytypes
 
@@ -204,31 +207,79 @@ def get_threads():
 
 _announced = set()
 
+#: ``DEM_COMPILE_APART=0`` compiles the time loops in this process (see :func:`prepare`)
+APART = os.environ.get("DEM_COMPILE_APART", "1") != "0"
 
-def announce_compile(dispatcher, family):
-    """Say once per process and kernel family, before its first call, that the kernels
-    are being compiled and for about how long, where ``dispatcher`` is not in the
-    disk cache (a first run, or the first after an edit or upgrade). On a terminal the
-    line goes to stderr (``dem: compiling ...``); otherwise it is logged at INFO
-    (``-v`` shows it), so that scripted runs keep their output. Under MPI only rank
-    0 says it."""
-    if family in _announced:
+
+def recipe(dispatcher, factory, *args, **kwargs):
+    """Mark ``dispatcher`` as made by ``factory(*args, **kwargs)``, a module-level
+    function whose arguments pickle; :func:`prepare` may then compile it in a child
+    process. Returns the dispatcher."""
+    dispatcher.dem_recipe = (factory.__module__, factory.__qualname__, args, kwargs)
+    return dispatcher
+
+
+def prepare(dispatcher, args, family):
+    """Make sure ``dispatcher`` is compiled for ``args`` before its first call.
+
+    Where the loop is not in the disk cache (a first run, or the first after an edit
+    or upgrade), say so once per process and family (on a terminal to stderr, else
+    logged at INFO; under MPI only rank 0 speaks), and, for a dispatcher with a
+    :func:`recipe`, compile it in a child process that writes the disk cache, from
+    which this process then loads it.
+
+    Why a child: numba keeps every intermediate object of a ``parallel=True``
+    compilation alive for the life of the process (numba issue 5667). A time loop
+    leaves 1.5-3 GB behind that way, so a process that compiled a few variants (a
+    test session, a notebook that tries 2D and 3D, with and without rolling) grew
+    past the memory of a laptop; loaded from the cache, a loop costs a few MB. If the
+    child fails, the loop compiles here, as numba would, and raises any error here.
+    ``DEM_COMPILE_APART=0`` turns the child off.
+    """
+    if numba.config.DISABLE_JIT or not CACHE:
         return
-    _announced.add(family)
-    if not _cold(dispatcher) or os.environ.get("PMI_RANK", "0") != "0":
-        return
-    msg = (f"compiling the {family} kernels: first run only, about "
-           f"{COMPILE_S[family]} s")
-    if sys.stderr.isatty():
-        print(f"dem: {msg}", file=sys.stderr, flush=True)
-    else:
-        log.info(msg)
-
-
-def _cold(dispatcher):
-    """True if ``dispatcher`` (a cached numba dispatcher) has no index on disk yet."""
     try:
-        index = dispatcher._cache._cache_file._index_path  # numba's cache layout
-    except AttributeError:  # not cached, or another numba: nothing to say
-        return False
-    return not os.path.exists(index)
+        sig = tuple(dispatcher.typeof_pyval(a) for a in args)
+    except Exception:  # numba raises its own error at the call
+        return
+    if sig in dispatcher.overloads or _cached(dispatcher, sig):
+        return
+    if family not in _announced:
+        _announced.add(family)
+        if os.environ.get("PMI_RANK", "0") == "0":
+            msg = (f"compiling the {family} kernels: first run only, about "
+                   f"{COMPILE_S[family]} s")
+            if sys.stderr.isatty():
+                print(f"dem: {msg}", file=sys.stderr, flush=True)
+            else:
+                log.info(msg)
+    made = getattr(dispatcher, "dem_recipe", None)
+    if made is None or not APART:
+        return
+    # the child must not join an MPI job: drop the process manager's variables
+    env = {k: v for k, v in os.environ.items()
+           if not k.startswith(("PMI_", "PMIX_", "HYDRA_", "MPICH_", "OMPI_"))}
+    done = subprocess.run([sys.executable, "-c", "import dem._jit as j; j._compile_child()"],
+                          input=pickle.dumps((numba.config.CACHE_DIR, made, sig)),
+                          env=env, capture_output=True)
+    if done.returncode != 0 or not _cached(dispatcher, sig):
+        log.info("the %s kernels did not compile in a child process (exit %d): "
+                 "compiling here\n%s", family, done.returncode,
+                 done.stderr.decode(errors="replace")[-2000:])
+
+
+def _compile_child():
+    """The child of :func:`prepare`: compile one loop for one signature (from stdin)."""
+    numba.config.CACHE_DIR, (module, name, args, kwargs), sig = pickle.load(sys.stdin.buffer)
+    factory = getattr(importlib.import_module(module), name)
+    factory(*args, **kwargs).compile(sig)
+
+
+def _cached(dispatcher, sig):
+    """True if ``dispatcher`` has ``sig`` in its disk cache, or has no disk cache."""
+    try:  # numba's cache layout (0.5x-0.6x)
+        cache = dispatcher._cache
+        key = cache._index_key(sig, dispatcher.targetctx.codegen())
+        return key in cache._cache_file._load_index()
+    except AttributeError:  # not cached, or another numba: nothing to do
+        return True

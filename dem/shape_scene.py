@@ -140,14 +140,14 @@ class ShapeScene:
         self._winc_list = np.zeros(mw, np.int64)
         incidence(nl.wall_pairs, n, 0, self._winc_start, self._winc_list)
 
-    def _shape_call(self, n_steps, prime, resume):
+    def _shape_args(self, n_steps, prime, resume):
         b, nl = self.bodies, self.neighbors
         if self._has_parts:
             parts = (self._ekind, self._eshape, self._epos, self._erot, self._erad,
                      self._enormal)
         else:
             parts = (self._kind64, self._shape64, b.pos, b.rot, b.radius, b.normal)
-        return self._shape_kernel(
+        return (
             n_steps, prime, resume, self._settings(), self._body_arrays(),
             self._cell_arrays(), NeighborArrays(nl.pairs, nl.img, nl.wall_pairs, nl.pos_ref),
             self.pair_state, self.wall_state, self.shape_state, self.shape_wall_state,

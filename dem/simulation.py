@@ -6,7 +6,7 @@ import math
 import numba
 import numpy as np
 
-from ._jit import announce_compile
+from ._jit import prepare
 from .boundary import PeriodicCell
 from .contact.loops import stepper
 from .contact.sphere_contacts import N_BLOCKS, InnerIndex, inner_index
@@ -251,10 +251,15 @@ class Simulation(ShapeScene, MeshScene):
                         self._inc_start, self._slot)
 
     def _call(self, n_steps, prime, resume=False):
+        kernel, args = self._loop_args(n_steps, prime, resume)
+        return kernel(*args)
+
+    def _loop_args(self, n_steps, prime, resume):
+        """The time loop of this scene and its arguments."""
         if self.shaped:
-            return self._shape_call(n_steps, prime, resume)
+            return self._shape_kernel, self._shape_args(n_steps, prime, resume)
         nl = self.neighbors
-        return self._kernel(
+        return self._kernel, (
             n_steps, prime, resume, numba.get_num_threads() == 1, self._settings(),
             self._body_arrays(), self._cell_arrays(),
             NeighborArrays(nl.pairs, nl.img, nl.wall_pairs, nl.pos_ref), self.pair_state,
@@ -286,10 +291,7 @@ class Simulation(ShapeScene, MeshScene):
                 self._rebuild()  # first build, or bodies added (dem.insertion)
             elif not self.shaped:
                 self._index()
-            if self.shaped:
-                announce_compile(self._shape_kernel, "shape")
-            else:
-                announce_compile(self._kernel, "sphere")
+            prepare(*self._loop_args(0, True, False), "shape" if self.shaped else "sphere")
             self._call(0, True)
             if self._status[0] == REBUILD:  # bodies moved past the skin since its build
                 self._rebuild()

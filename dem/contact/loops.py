@@ -40,7 +40,7 @@ import math
 import numba
 import numpy as np
 
-from .._jit import kernel
+from .._jit import kernel, recipe
 from ..status import NONFINITE, OK, REBUILD
 from .kinematics import (_cell_map, _cell_start, _deform_cell, _drift_body, _finish_body,
                          _strain_norm, cell_spin, moved2)
@@ -344,5 +344,6 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
                 done += 1
         return done
 
-    _STEPPERS[key] = run_steps
+    _STEPPERS[key] = recipe(run_steps, stepper, DIM, PP, PW, PERIODIC, rolling=ROLL,
+                            mesh=MESH)
     return run_steps

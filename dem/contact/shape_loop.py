@@ -38,7 +38,7 @@ from typing import NamedTuple
 import numba
 import numpy as np
 
-from .._jit import specialise
+from .._jit import recipe, specialise
 from ..shapes.table import PLANE
 from ..status import NOCONVERGE, NONFINITE, OK, REBUILD
 from .detection.admm import admm_contact, make_admm
@@ -314,6 +314,9 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
     # with a custom shape, the same code with ``_ADMM`` bound to the user's SDF (not
     # cached on disk); without, ``_ADMM`` stays the global below and the loop caches
     run = specialise(run_shape_steps, parallel=True, _ADMM=make_admm(custom_sdf))
+    if custom_sdf is None:  # else compiled for this process only
+        recipe(run, shape_stepper, DIM, (M_ADMM,) if use_admm else (), (), PP, PW,
+               periodic=PERIODIC)
     _STEPPERS[key] = run
     return run
 

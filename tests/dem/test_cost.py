@@ -1,10 +1,12 @@
 """The cost model of the dry runs (dem.cost) and the notice of a cold compile
-(dem._jit.announce_compile)."""
+and its compilation in a child process (dem._jit.prepare)."""
 
 import importlib.util
 import io
 import logging
+import os
 
+import numpy as np
 import pytest
 
 from dem import _jit, cost
@@ -58,30 +60,61 @@ class _Terminal(io.StringIO):
 
 
 def _fresh_kernel(tmp_path, monkeypatch, name):
-    """A cached kernel in a module of its own, with its own disk cache."""
+    """A cached kernel in a module of its own, with its own disk cache, made by a
+    factory with a recipe (so that :func:`dem._jit.prepare` may compile it apart)."""
     monkeypatch.setattr(_jit.numba.config, "CACHE_DIR", str(tmp_path / "cache"))
     src = tmp_path / f"{name}.py"
-    src.write_text("from dem._jit import kernel\n\n\n@kernel\ndef twice(x):\n"
-                   "    return 2.0 * x\n")
+    src.write_text("import numba\n"
+                   "from dem._jit import kernel, recipe\n\n\n"
+                   "def make(k):\n"
+                   "    @kernel(parallel=True)\n"
+                   "    def scaled_sum(x):\n"
+                   "        s = 0.0\n"
+                   "        for i in numba.prange(x.shape[0]):\n"
+                   "            s += k * x[i]\n"
+                   "        return s\n"
+                   "    return recipe(scaled_sum, make, k)\n")
+    monkeypatch.syspath_prepend(str(tmp_path))  # for the child process too
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(
+        [str(tmp_path)] + os.environ.get("PYTHONPATH", "").split(os.pathsep)))
     spec = importlib.util.spec_from_file_location(name, src)
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    return module.twice
+    return module.make(2.0)
 
 
-def test_a_cold_kernel_is_announced_once_on_a_terminal(tmp_path, monkeypatch):
+X = np.arange(4.0)
+
+
+def _sig(dispatcher):
+    return tuple(dispatcher.typeof_pyval(a) for a in (X,))
+
+
+def test_a_cold_loop_is_announced_once_and_compiled_in_a_child(tmp_path, monkeypatch):
     twice = _fresh_kernel(tmp_path, monkeypatch, "cold_kernel_a")
     monkeypatch.setattr(_jit, "_announced", set())
     monkeypatch.delenv("PMI_RANK", raising=False)
     err = _Terminal()
     monkeypatch.setattr(_jit.sys, "stderr", err)
-    assert _jit._cold(twice)
-    _jit.announce_compile(twice, "sphere")
-    _jit.announce_compile(twice, "sphere")
+    assert not _jit._cached(twice, _sig(twice))
+    _jit.prepare(twice, (X,), "sphere")
+    _jit.prepare(twice, (X,), "sphere")
     assert err.getvalue() == (f"dem: compiling the sphere kernels: first run only, "
                               f"about {_jit.COMPILE_S['sphere']} s\n")
-    assert twice(2.0) == 4.0  # compiled and cached: warm from now on
-    assert not _jit._cold(twice)
+    # the child wrote the disk cache; this process has compiled nothing, and loads it
+    assert _jit._cached(twice, _sig(twice))
+    assert not twice.overloads
+    assert twice(X) == 12.0
+    assert twice.stats.cache_hits[_sig(twice)] == 1
+
+
+def test_without_the_child_the_loop_compiles_here(tmp_path, monkeypatch):
+    twice = _fresh_kernel(tmp_path, monkeypatch, "cold_kernel_d")
+    monkeypatch.setattr(_jit, "APART", False)
+    _jit.prepare(twice, (X,), "sphere")
+    assert not _jit._cached(twice, _sig(twice))
+    assert twice(X) == 12.0
+    assert twice.stats.cache_misses[_sig(twice)] == 1
 
 
 def test_warm_kernels_and_other_ranks_say_nothing(tmp_path, monkeypatch):
@@ -90,11 +123,12 @@ def test_warm_kernels_and_other_ranks_say_nothing(tmp_path, monkeypatch):
     monkeypatch.setattr(_jit.sys, "stderr", err)
     monkeypatch.setattr(_jit, "_announced", set())
     monkeypatch.setenv("PMI_RANK", "1")
-    _jit.announce_compile(twice, "shape")  # cold, but not rank 0
-    twice(1.0)
+    monkeypatch.setattr(_jit, "APART", False)
+    _jit.prepare(twice, (X,), "shape")  # cold, but not rank 0
+    twice(X)
     monkeypatch.setattr(_jit, "_announced", set())
     monkeypatch.delenv("PMI_RANK")
-    _jit.announce_compile(twice, "shape")  # rank 0, but warm
+    _jit.prepare(twice, (X,), "shape")  # rank 0, but warm
     assert err.getvalue() == ""
 
 
@@ -102,8 +136,9 @@ def test_off_a_terminal_the_notice_is_logged(tmp_path, monkeypatch, caplog):
     twice = _fresh_kernel(tmp_path, monkeypatch, "cold_kernel_c")
     monkeypatch.setattr(_jit, "_announced", set())
     monkeypatch.delenv("PMI_RANK", raising=False)
+    monkeypatch.setattr(_jit, "APART", False)
     monkeypatch.setattr(_jit.sys, "stderr", io.StringIO())
     with caplog.at_level(logging.INFO, logger="dem._jit"):
-        _jit.announce_compile(twice, "shape")
+        _jit.prepare(twice, (X,), "shape")
     assert _jit.sys.stderr.getvalue() == ""
     assert "compiling the shape kernels: first run only" in caplog.text

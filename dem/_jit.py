@@ -213,8 +213,8 @@ APART = os.environ.get("DEM_COMPILE_APART", "1") != "0"
 
 def recipe(dispatcher, factory, *args, **kwargs):
     """Mark ``dispatcher`` as made by ``factory(*args, **kwargs)``, a module-level
-    function whose arguments pickle; :func:`prepare` may then compile it in a child
-    process. Returns the dispatcher."""
+    function whose arguments are plain values (numbers, strings, tuples):
+    :func:`prepare` may then compile it in a child process. Returns the dispatcher."""
     dispatcher.dem_recipe = (factory.__module__, factory.__qualname__, args, kwargs)
     return dispatcher
 

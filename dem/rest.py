@@ -12,7 +12,7 @@ import time
 import numpy as np
 
 from .shapes import Shape
-from .simulation import progress_bar
+from .progress import progress_bar
 
 __all__ = ["largest_speed", "run_chunked", "run_until_rest"]
 

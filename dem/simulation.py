@@ -13,6 +13,7 @@ from .contact.sphere_contacts import N_BLOCKS, InnerIndex, inner_index
 from .contact.model import ContactModel
 from .mesh_scene import MeshScene
 from .neighbors import NeighborList, carry_history, incidence
+from .progress import progress_bar
 from .shape_scene import ShapeScene
 from .shapes import Shape
 from .state import (
@@ -318,7 +319,8 @@ class Simulation(ShapeScene, MeshScene):
     def parameter_table(self, bucket):
         """The contact law's parameter table in use, ``"pp"`` (body-body) or ``"pw"``
         (body-wall): one row per material pair (:meth:`dem.ContactModel.table`)."""
-        self.prime()
+        if not self._primed:  # the tables prime() would build, without its first step
+            self._refresh_tables()
         if bucket not in ("pp", "pw"):
             raise ValueError(f"bucket must be 'pp' or 'pw', got {bucket!r}")
         return self._params_pp if bucket == "pp" else self._params_pw
@@ -586,16 +588,3 @@ class Simulation(ShapeScene, MeshScene):
             out[int(w)] = -self.wall_state.wforce[rows].sum(axis=0)
         return out
 
-
-def progress_bar(n_steps, progress, min_steps=20000, unit="step"):
-    """A tqdm bar over ``n_steps``, or None. ``progress`` True/False forces it; None
-    shows it when stderr is a terminal and there are at least ``min_steps``."""
-    import sys
-
-    if progress is None:
-        progress = n_steps >= min_steps and sys.stderr.isatty()
-    if not progress:
-        return None
-    from tqdm import tqdm
-
-    return tqdm(total=n_steps, unit=unit, unit_scale=min_steps > 1, leave=False)

@@ -154,7 +154,7 @@ def run_experiment(cfg, out_dir=None, overwrite=False, progress=None):
     dem.rve.RelaxationError
         An increment did not relax; nothing is written.
     """
-    from dem.simulation import progress_bar
+    from dem.progress import progress_bar
 
     from dem.io.plan import check_new_files
 

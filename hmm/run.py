@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from dem.simulation import progress_bar
+from dem.progress import progress_bar
 from dem.io.files import OutputError
 
 from .checkpoint import Checkpoint

@@ -695,12 +695,22 @@ UNSAFE = re.compile(r"\bpickle\b|\bcloudpickle\b|\bmarshal\b|\bshelve\b|\beval\(
                     r"\bexec\(|allow_pickle\s*=\s*True|yaml\.load\(|np\.load\(")
 
 
+#: the one pickle of the package, line by line: dem._jit.prepare hands a compilation
+#: (a factory's name and arguments, numba types) to its own child process through a
+#: pipe; the child reads that pipe, never a file
+TRUSTED = {("dem/_jit.py", "import pickle"),
+           ("dem/_jit.py", "input=pickle.dumps((numba.config.CACHE_DIR, made, sig)),"),
+           ("dem/_jit.py", "numba.config.CACHE_DIR, (module, name, args, kwargs), sig = "
+                           "pickle.load(sys.stdin.buffer)")}
+
+
 def test_input_files_cannot_run_code():
     """No deserialiser that runs code on anything read from a file."""
     hits = [f"{p.relative_to(ROOT)}:{i}: {line.strip()}"
             for pkg in ("dem", "hmm") for p in sorted((ROOT / pkg).rglob("*.py"))
             for i, line in enumerate(p.read_text().splitlines(), 1)
-            if UNSAFE.search(line)]
+            if UNSAFE.search(line)
+            and (str(p.relative_to(ROOT)), line.strip()) not in TRUSTED]
     assert not hits, "\n".join(hits)
 
 

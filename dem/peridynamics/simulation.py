@@ -13,7 +13,8 @@ import numba
 import numpy as np
 
 from ..shapes import Shape
-from ..simulation import PARALLEL_MIN_BODIES, SimulationError, progress_bar
+from ..progress import progress_bar
+from ..simulation import PARALLEL_MIN_BODIES, SimulationError
 from ..status import NONFINITE, REBUILD
 from .kernels import (
     bond_pass,

@@ -76,11 +76,13 @@ def _cache_log(cache_dir):
 @pytest.mark.slow  # compiles the 2D shape loop from a cold cache (about a minute)
 def test_a_shape_loop_loads_from_the_disk_cache_in_a_new_process(tmp_path):
     saved1, loaded1 = _cache_log(tmp_path)
-    assert saved1 and not loaded1, "the first process should compile and save"
     # the scene's time loop, built by its factory (shape_loop.shape_stepper) through
-    # dem._jit, is among the kernels saved
-    assert any("shape_stepper" in path for path in saved1), sorted(saved1)
+    # dem._jit, compiles in a child process (dem._jit.prepare), which saves it; this
+    # process loads it from there, and compiles and saves the rest
+    assert saved1, "the first process should compile and save"
+    assert any("shape_stepper" in path for path in loaded1), sorted(loaded1)
+    assert not any("shape_stepper" in path for path in saved1), sorted(saved1)
     saved2, loaded2 = _cache_log(tmp_path)
     assert not saved2, f"compiled again in a new process: {sorted(saved2)}"
     assert any("shape_stepper" in path for path in loaded2), sorted(loaded2)
-    assert loaded2 <= saved1
+    assert loaded2 <= saved1 | loaded1

@@ -22,11 +22,12 @@ demo: $(STAMP)
 
 # The suite runs as two pytest processes side by side, split where the compiled loops
 # differ (level-set shapes and their contact solvers, mesh walls and rolling resistance /
-# everything else), so that numba compiles the two halves at once and neither process
-# holds every compiled loop (each keeps what it compiled: several GB); then the MPI tests.
+# everything else), so that numba compiles the two halves at once (each cold time loop in
+# a child process of its own, dem._jit.prepare); then the MPI tests.
 SHAPE_TESTS := $(sort $(wildcard tests/dem/test_detection_*.py tests/dem/test_shape*.py \
 	tests/dem/test_io_shapes.py tests/dem/test_interpreted.py tests/dem/test_compound.py \
-	tests/dem/test_meshwall*.py tests/dem/test_rolling_resistance.py \
+	tests/dem/test_meshwall*.py tests/dem/test_scene_meshes.py \
+	tests/dem/test_rolling_resistance.py \
 	tests/dem/test_hopper_beverloo.py tests/test_angle_of_repose.py))
 # the documentation pages run as written (about 4 minutes), shared between the halves
 DOC_TESTS := tests/test_doc_pages.py

@@ -352,7 +352,8 @@ def _bodies_line(sim):
 
     b = sim.bodies
     n_sph, n_wall = len(b.ids(Shape.SPHERE)), len(b.ids(Shape.PLANE))
-    return (f"{n_sph} {'spheres' if b.dim == 3 else 'disks'}, {n_wall} walls "
+    meshes = f", {len(sim.mesh_walls)} mesh walls" if sim.mesh_walls else ""
+    return (f"{n_sph} {'spheres' if b.dim == 3 else 'disks'}, {n_wall} walls{meshes} "
             f"({b.dim}D)")
 
 

@@ -20,6 +20,7 @@ MeshWall(8 vertices, 12 faces, watertight)
 import contextlib
 import io
 import logging
+import math
 import os
 import warnings
 from typing import NamedTuple
@@ -368,18 +369,25 @@ class MeshWall:
             raise ValueError(f"cannot write mesh file {path}: {err}") from None
 
     @classmethod
-    def from_file(cls, path, require_watertight=False, merge_tol=MERGE_TOL, **kw):
+    def from_file(cls, path, require_watertight=False, merge_tol=MERGE_TOL, scale=1.0,
+                  shift=None, **kw):
         """The wall of the triangles of a file meshio reads (STL ascii or binary, ...).
 
-        Vertices closer than ``merge_tol`` times the bounding-box diagonal are merged,
-        so that triangles written with their own copies of each corner (as STL does)
-        share their edges; vertices no triangle uses are dropped. ``kw`` go to the
-        constructor (``velocity``, ``angular_velocity``, ``center``). Every error is
-        one ValueError line naming the file: missing, not a mesh, no triangles, a
-        degenerate triangle (its index), not watertight (with ``require_watertight``,
-        the number of open edges).
+        The file's coordinates are multiplied by ``scale`` (e.g. 0.001 for a file in
+        millimetres) and then shifted by ``shift`` (3,) [m]. Vertices closer than
+        ``merge_tol`` times the bounding-box diagonal are merged, so that triangles
+        written with their own copies of each corner (as STL does) share their edges;
+        vertices no triangle uses are dropped. ``kw`` go to the constructor
+        (``velocity``, ``angular_velocity``, ``center``, ``mat_id``). Every error is one
+        ValueError line naming the file: missing, not a mesh, no triangles, a bad
+        ``scale``, a degenerate triangle (its index), not watertight (with
+        ``require_watertight``, the number of open edges).
         """
         points, tri = _read_triangles(path)
+        scale = float(scale)
+        if not (math.isfinite(scale) and scale > 0.0):
+            raise ValueError(f"mesh file {path}: scale must be finite and > 0, got {scale}")
+        points = points * scale + _vector3(shift, "shift")
         points, tri = _merged(points, tri, merge_tol)
         try:
             wall = cls(points, tri, **kw)

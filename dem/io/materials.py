@@ -2,11 +2,12 @@
 :class:`dem.ContactModel` they make.
 
 A scene's particles belong to groups (``[particles] group``, default ``"particles"``;
-``[insert] group``, default the same); every wall belongs to the group ``"walls"``. The
+``[insert] group``, default the same); every wall, plane (``[[walls]]``) or triangle mesh
+(``[[meshes]]``), belongs to the group ``"walls"``. The
 contact law is one ``[contact]`` table for every pair of groups, or an array of
 ``[[contact]]`` tables, each naming its ``pair`` of groups (``pair = ["sand", "walls"]``
-is the law between the sand and every wall). A ``[[walls]]`` table may give the wall
-its own material: the keys of the particle-wall law that it names replace those of the
+is the law between the sand and every wall). A ``[[walls]]`` or ``[[meshes]]`` table may
+give the wall its own material: the keys of the particle-wall law that it names replace those of the
 law of its pair, the rest are kept. For ``hertz_mindlin`` a wall's ``young`` and
 ``poisson`` are the wall's side of the pair (the particles' side keeps the ``[contact]``
 values) and ``rigid = true`` makes it rigid (``1/E`` of the wall is 0 in ``E*`` and
@@ -14,8 +15,8 @@ values) and ``rigid = true`` makes it rigid (``1/E`` of the wall is 0 in ``E*`` 
 
 Each group becomes a material row (``mat_id``) in the order particles, insert; walls
 without material keys share one row after them, and each wall with its own material
-gets its own. A scene with one ``[contact]`` table and no wall material keeps every
-body on row 0 and one law for all.
+gets its own (planes first, then meshes, in file order). A scene with one ``[contact]``
+table and no wall material keeps every body on row 0 and one law for all.
 """
 
 import math
@@ -25,7 +26,7 @@ from .schema import NONNEGATIVE, POSITIVE, UNIT_OPEN_CLOSED, Key, Range
 from .text import show as _show
 
 __all__ = ["DEFAULT_GROUP", "ROLLING_KEYS", "WALLS", "WALL_MATERIAL_KEYS", "Materials",
-           "check_materials", "rolling_spec", "scene_materials"]
+           "check_materials", "rolling_spec", "scene_materials", "wall_tables"]
 
 #: the group of particles that name none
 DEFAULT_GROUP = "particles"
@@ -95,7 +96,8 @@ def rolling_spec(table):
 @dataclass(frozen=True)
 class Materials:
     """The material rows of a scene: ``groups`` {group name: mat_id}, ``walls`` the
-    mat_id of each wall in file order, ``model`` the :class:`dem.ContactModel`."""
+    mat_id of each wall (the ``[[walls]]`` planes, then the ``[[meshes]]``, in file
+    order), ``model`` the :class:`dem.ContactModel`."""
 
     groups: dict
     walls: list
@@ -122,6 +124,13 @@ def particle_groups(scene):
     return groups
 
 
+def wall_tables(scene):
+    """``(where, table)`` of every wall: the ``[[walls]]`` planes, then the
+    ``[[meshes]]``."""
+    return ([(f"[[walls]] #{i + 1}", w) for i, w in enumerate(scene["walls"])]
+            + [(f"[[meshes]] #{i + 1}", m) for i, m in enumerate(scene.get("meshes") or [])])
+
+
 def _own_keys(wall):
     """The material keys a [[walls]] table sets (``rigid = false`` is no change)."""
     return [k for k in WALL_MATERIAL_KEYS if wall.get(k) is not None and wall.get(k) is not False]
@@ -131,14 +140,14 @@ def _uniform(scene):
     """One [contact] table for every pair and no wall of its own material."""
     tables = contact_tables(scene)
     return (len(tables) == 1 and tables[0]["pair"] is None
-            and not any(_own_keys(w) for w in scene["walls"]))
+            and not any(_own_keys(w) for _, w in wall_tables(scene)))
 
 
 def _pairs(scene):
     """The group pairs the scene holds, particle-particle then particle-wall."""
     groups = particle_groups(scene)
     pp = [(a, b) for i, a in enumerate(groups) for b in groups[i:]]
-    pw = [(a, WALLS) for a in groups] if scene["walls"] else []
+    pw = [(a, WALLS) for a in groups] if wall_tables(scene) else []
     return pp, pw
 
 
@@ -203,8 +212,7 @@ def _check_pairs(ctx, scene, groups):
 
 
 def _check_walls(ctx, scene, law):
-    for i, w in enumerate(scene["walls"]):
-        where = f"[[walls]] #{i + 1}"
+    for where, w in wall_tables(scene):
         for key in _own_keys(w):
             if key not in WALL_KEYS[law]:
                 ctx.fail(f'{key} is not used with the {law} law of particle-wall '
@@ -244,7 +252,8 @@ def scene_materials(ctx, scene):
     from ..contact.model import ContactModel
 
     groups = particle_groups(scene)
-    walls = scene["walls"]
+    tables = wall_tables(scene)
+    walls = [w for _, w in tables]
     if _uniform(scene):
         law = _law(contact_tables(scene)[0], "[contact]", ctx)
         return Materials({g: 0 for g in groups}, [0] * len(walls), ContactModel(law))
@@ -266,6 +275,6 @@ def scene_materials(ctx, scene):
                 continue
             i, t = _table_for(scene, g, WALLS)
             own = {key: w[key] for key in _own_keys(w)}
-            where = f"[[walls]] #{k + 1}" if own else _where(scene, i)
+            where = tables[k][0] if own else _where(scene, i)
             pw[(ids[g], wall_ids[k])] = _law(t, where, ctx, **own)
     return Materials(ids, wall_ids, ContactModel(pp, pw or None))

@@ -38,6 +38,12 @@ Layout (SI units throughout; ``d`` is ``[simulation] dim``)::
     rigid = true                  # optional: the wall's own material, the keys of the
     mu = 0.3                      # particle-wall law (dem.io.materials)
 
+    [[meshes]]                    # any number (3D): triangle-mesh walls
+    file = "hopper.stl"           # required, relative to the scene file
+    scale = 0.001                 # optional factor on the file's coordinates
+    velocity = [0.0, 0.0, 0.0]    # [m/s]; angular_velocity [rad/s] about center [m]
+    mu = 0.3                      # optional: the wall's own material, as [[walls]]
+
     [contact]                     # or several [[contact]] with pair = ["a", "b"]
     law = "linear"                # required: "linear" or "hertz_mindlin"
     kn = 1e4                      # linear: [N/m], required
@@ -105,8 +111,8 @@ from .text import show as _show
 log = logging.getLogger(__name__)
 
 __all__ = ["REQUIRED", "SCHEMA", "Key", "OutputSettings", "Range", "SceneError", "Section",
-           "build_bodies", "build_simulation", "load_scene", "read_toml", "schema_markdown",
-           "validate", "validate_scene"]
+           "build_bodies", "build_meshes", "build_simulation", "load_scene", "read_toml",
+           "schema_markdown", "validate", "validate_scene"]
 
 
 SCHEMA = {
@@ -194,6 +200,28 @@ SCHEMA = {
         "point": Key("vector", "m", default=REQUIRED, doc="A point of the plane."),
         "normal": Key("vector", default=REQUIRED, doc="Normal towards the free side."),
         "velocity": Key("vector", "m/s", default=0.0, doc="Prescribed velocity."),
+        **WALL_MATERIAL_KEYS,
+    }),
+    "meshes": Section(doc="Triangle-mesh walls (3D, spheres, no [domain]): the triangles "
+                          "of a file meshio reads (STL, OBJ, PLY, VTK, ...), moved "
+                          "rigidly by a prescribed velocity and angular velocity.",
+                      array=True, keys={
+        "file": Key("path", default=REQUIRED,
+                    doc="The mesh file, relative to the scene file; its triangles are "
+                        "the wall (corners shared by several triangles are merged)."),
+        "scale": Key("float", default=1.0, range=POSITIVE,
+                     doc="Factor on the file's coordinates (0.001 for millimetres)."),
+        "shift": Key("vector", "m", default=0.0,
+                     doc="Translation of the scaled coordinates."),
+        "watertight": Key("bool", default=False,
+                          doc="Require a closed surface (every edge shared by two "
+                              "triangles)."),
+        "velocity": Key("vector", "m/s", default=0.0, doc="Prescribed velocity."),
+        "angular_velocity": Key("vector", "rad/s", default=0.0,
+                                doc="Prescribed angular velocity about center."),
+        "center": Key("vector", "m",
+                      doc="The point the wall turns about (it moves with the wall); "
+                          "default the centre of the wall's bounding box."),
         **WALL_MATERIAL_KEYS,
     }),
     "contact": Section(doc="The contact law: one [contact] table for every pair, or an "
@@ -316,6 +344,8 @@ def _cross_checks(ctx, scene):
     for i, w in enumerate(scene["walls"]):
         if not any(w["normal"]):
             ctx.fail("normal must be a non-zero vector", f"[[walls]] #{i + 1}")
+    if scene["meshes"] and ctx.dim != 3:
+        ctx.fail("mesh walls need a 3D scene ([simulation] dim = 3)", "[[meshes]] #1")
     _check_domain(ctx, scene)
     _check_insert(ctx, scene)
     check_materials(ctx, scene)
@@ -367,6 +397,8 @@ def _check_domain(ctx, scene):
                          f"its periodic axis {'xyz'[a]}: {_fmt(p['lo'][a])}.."
                          f"{_fmt(p['hi'][a])} is not inside {_fmt(dom['lo'][a])}.."
                          f"{_fmt(dom['hi'][a])}", "[particles]")
+    if scene["meshes"]:
+        ctx.fail("mesh walls do not work with a periodic [domain]", "[[meshes]] #1")
     for i, w in enumerate(scene["walls"]):
         if any(w["normal"][a] != 0.0 for a in axes):
             ctx.fail(f"a wall's normal must have no component along a periodic axis "
@@ -442,6 +474,39 @@ def build_bodies(scene):
     return bodies
 
 
+def build_meshes(scene, bodies, mat_ids):
+    """The :class:`dem.MeshWall` of each ``[[meshes]]`` table of a validated scene, with
+    the material rows ``mat_ids``.
+
+    Raises :class:`SceneError` naming the table for a file that is missing, unreadable,
+    without triangles, with a degenerate triangle or (``watertight``) open, and for a
+    particle of ``bodies`` that overlaps a wall.
+    """
+    from ..meshwall import MeshWall
+
+    ctx = _Context(scene.get("source", "<scene>"), Path("."))
+    out = []
+    pos, radius = bodies.pos, bodies.radius
+    for i, (m, mat) in enumerate(zip(scene["meshes"], mat_ids, strict=True)):
+        where = f"[[meshes]] #{i + 1}"
+        try:
+            wall = MeshWall.from_file(m["file"], require_watertight=m["watertight"],
+                                      scale=m["scale"], shift=m["shift"],
+                                      velocity=m["velocity"],
+                                      angular_velocity=m["angular_velocity"],
+                                      center=m["center"], mat_id=mat)
+        except ValueError as exc:
+            ctx.fail(str(exc), where)
+        ptr, _ = wall.faces_near(pos, radius)
+        for k in np.flatnonzero(np.diff(ptr)):
+            hit = wall.contacts(pos[k], radius[k])
+            if hit.overlap.size and hit.overlap.max() > 1e-9 * radius[k]:
+                ctx.fail(f"particle {int(k)} at {_show(pos[k].tolist())} overlaps the "
+                         f"mesh wall by {_fmt(float(hit.overlap.max()))} m", where)
+        out.append(wall)
+    return out
+
+
 def build_simulation(scene):
     """Build the :class:`dem.Simulation` of a validated scene (from :func:`load_scene`).
 
@@ -458,6 +523,7 @@ def build_simulation(scene):
     ctx = _Context(scene.get("source", "<scene>"), Path("."))
     bodies = build_bodies(scene)
     mats = scene_materials(ctx, scene)
+    meshes = build_meshes(scene, bodies, mats.walls[len(scene["walls"]):])
     s = scene["simulation"]
     if s["dt"] is not None and not s["allow_unstable_dt"]:
         dt_max = stable_time_step(bodies, mats.model, s["damping"])[0]
@@ -470,7 +536,8 @@ def build_simulation(scene):
                          damping=s["damping"], skin=s["skin"],
                          neighbor_backend=s["neighbor_backend"],
                          overlap_limit=s["overlap_limit"],
-                         allow_unstable_dt=s["allow_unstable_dt"], box=scene_domain(scene))
+                         allow_unstable_dt=s["allow_unstable_dt"], box=scene_domain(scene),
+                         walls=meshes)
     except ValueError as exc:
         ctx.fail(str(exc), "[simulation]")
     if scene["insert"] is not None:

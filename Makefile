@@ -83,6 +83,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/pd_surface_effect.py
 	$(BIN)/python benchmarks/stability_map.py
 	$(BIN)/python benchmarks/angle_of_repose.py
+	$(BIN)/python benchmarks/compile_memory.py
 
 clean:
 	rm -rf $(VENV) .numba_cache .pytest_cache output

@@ -73,8 +73,19 @@ if "NUMBA_THREADING_LAYER" not in os.environ:
     numba.config.THREADING_LAYER = "omp"
 
 
+#: numba's parallel options of a ``parallel=True`` kernel: the explicit ``prange`` loops
+#: run on threads, and nothing else is parallelised. Numba's other conversions (array
+#: expressions, ``a[:] = x``, reductions such as ``.max()`` become parallel loops of their
+#: own, and adjacent loops are fused) find nothing worth a thread in these kernels, and
+#: cost a third of a time loop's cold compile (``benchmarks/cold_start.py``).
+PRANGE_ONLY = {"prange": True, "comprehension": False, "reduction": False,
+               "inplace_binop": False, "setitem": False, "numpy": False, "stencil": False,
+               "fusion": False}
+
+
 def kernel(fn=None, *, parallel=False, inline=False, cache=True):
-    """``numba.njit`` with project defaults; ``parallel=True`` only where a prange exists.
+    """``numba.njit`` with project defaults; ``parallel=True`` only where a prange exists
+    (and only the prange loops run in parallel: :data:`PRANGE_ONLY`).
 
     ``inline=True`` inlines the function into its callers at numba's IR level: for the
     small per-contact kernels (laws) called from hot loops, where a real call would pass
@@ -85,7 +96,8 @@ def kernel(fn=None, *, parallel=False, inline=False, cache=True):
     solver's pieces), and for functions that hold per-process objects (see
     :func:`specialise`).
     """
-    deco = numba.njit(cache=CACHE and cache, parallel=parallel, fastmath=False,
+    deco = numba.njit(cache=CACHE and cache, parallel=dict(PRANGE_ONLY) if parallel else False,
+                      fastmath=False,
                       error_model="numpy", inline="always" if inline else "never")
     return deco if fn is None else deco(fn)
 

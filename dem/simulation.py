@@ -167,13 +167,17 @@ class Simulation(ShapeScene, MeshScene):
         if self.shaped:
             self._shape_setup(periodic)
         else:
-            self._kernel = stepper(self.dim, model.kind("pp").code, model.kind("pw").code,
-                                   periodic=periodic, deform=self.cell is not None,
-                                   rolling=model.rolling, mesh=self.has_mesh)
+            # the time loop's compile-time choices; one thread or several picks
+            # between two kernels at every call (dem.contact.loops.stepper)
+            self._loop_key = dict(dim=self.dim, law_pp=model.kind("pp").code,
+                                  law_pw=model.kind("pw").code, periodic=periodic,
+                                  deform=self.cell is not None, rolling=model.rolling,
+                                  mesh=self.has_mesh)
         d = self.dim
         self._lgrad = self.cell.lgrad if self.cell is not None else np.zeros((d, d))
         self._cellref = np.zeros((2, d, d))  # H^-1 at the Verlet build, at the inner list
         self._primed = False
+        self._prepared = None  # the time loop last made ready (dem._jit.prepare)
         self._failure_hooks = []
 
     # ------------------------------------------------------------------ set-up
@@ -253,6 +257,9 @@ class Simulation(ShapeScene, MeshScene):
 
     def _call(self, n_steps, prime, resume=False):
         kernel, args = self._loop_args(n_steps, prime, resume)
+        if kernel is not self._prepared:  # first call, or the thread count changed
+            prepare(kernel, args, "shape" if self.shaped else "sphere")
+            self._prepared = kernel
         return kernel(*args)
 
     def _loop_args(self, n_steps, prime, resume):
@@ -260,8 +267,8 @@ class Simulation(ShapeScene, MeshScene):
         if self.shaped:
             return self._shape_kernel, self._shape_args(n_steps, prime, resume)
         nl = self.neighbors
-        return self._kernel, (
-            n_steps, prime, resume, numba.get_num_threads() == 1, self._settings(),
+        return stepper(**self._loop_key, serial=self.threads == 1), (
+            n_steps, prime, resume, self._settings(),
             self._body_arrays(), self._cell_arrays(),
             NeighborArrays(nl.pairs, nl.img, nl.wall_pairs, nl.pos_ref), self.pair_state,
             self.wall_state, InnerIndex(self._contrib, self._slot, self._inc_start,
@@ -292,7 +299,6 @@ class Simulation(ShapeScene, MeshScene):
                 self._rebuild()  # first build, or bodies added (dem.insertion)
             elif not self.shaped:
                 self._index()
-            prepare(*self._loop_args(0, True, False), "shape" if self.shaped else "sphere")
             self._call(0, True)
             if self._status[0] == REBUILD:  # bodies moved past the skin since its build
                 self._rebuild()

@@ -51,7 +51,8 @@ from .sphere_contacts import (N_BLOCKS, _compact_inner, _near, _scatter_pair, _s
 _STEPPERS = {}
 
 
-def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, mesh=False):
+def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, mesh=False,
+            serial=False):
     """The compiled multi-step kernel for ``dim`` (2 or 3) and two law codes.
 
     ``law_pp``/``law_pw`` are law codes (a law class's ``code``: 0 linear, 1
@@ -65,18 +66,28 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
     parameters follow the law's in the parameter tables. ``mesh`` compiles in the
     contacts with triangle-mesh walls (:mod:`dem.contact.mesh_contacts`): their motion
     after the drift, their forces after the plane walls' in every body's sum.
+    ``serial`` compiles the one-thread loop: each contact is added to its bodies as it
+    comes, in the order the threaded sums use, so that the two loops give the same bits;
+    the caller takes it for a scene that runs on one thread. It is a kernel of its own,
+    not a branch of the threaded one, because numba's parallel passes cost in
+    proportion to the whole function: kept apart, each kind compiles in about half the
+    time of the two together, and a scene compiles only the kind it runs
+    (``benchmarks/cold_start.py``). The one-thread loop is still compiled with
+    ``parallel=True`` (its per-body loops run on the one thread): compiled without, the
+    same code ran 11x slower (0.268 s against 0.0245 s per 1,000 steps of a 400-disk
+    periodic RVE, one measurement each).
     Only integers are captured, so the kernel caches on disk; the branches not taken
     fold away at compile time.
     """
     key = (int(dim), int(law_pp), int(law_pw), bool(periodic or deform), bool(rolling),
-           bool(mesh))
+           bool(mesh), bool(serial))
     if key in _STEPPERS:
         return _STEPPERS[key]
-    DIM, PP, PW, PERIODIC, ROLL, MESH = key
+    DIM, PP, PW, PERIODIC, ROLL, MESH, SERIAL = key
     DEFORM = PERIODIC
 
     @kernel(parallel=True)
-    def run_steps(n_steps, prime, resume, serial, settings, body, cell, nbr, pstate,
+    def run_steps(n_steps, prime, resume, settings, body, cell, nbr, pstate,
                   wstate, index, params_pp, params_pw, status_out, work_out, meshes):
         """Advance ``n_steps``; returns the number of completed steps.
 
@@ -91,8 +102,6 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
         ``prime`` = True computes forces at the current state without moving anything
         (tangential springs are not advanced). ``resume`` = True finishes a step whose
         drift was done by the previous call (which stopped with ``REBUILD``).
-        ``serial`` = True takes the one-thread path (the caller knows the thread
-        count; asking numba from here would make the kernel uncacheable).
         ``status_out`` (4,) int64 receives (code, i, j, inner-list refreshes); ``work_out`` (1,)
         accumulates the work of walls on bodies [J]. ``meshes`` is the
         :class:`~dem.contact.mesh_contacts.MeshLoop` (empty arrays unless ``mesh``).
@@ -187,7 +196,7 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
             if MESH:  # 4b. sphere-mesh rows, sphere by sphere (their sums added in 5)
                 mesh_forces(PW, ROLL, pos, vel, ang_vel, radius, inv_mass, inv_inertia,
                             mat_id, meshes, params_pw, hdt, overlap_limit, status_out)
-            if serial:
+            if SERIAL:
                 # ---- 3-5 on one thread: add each contact to its bodies as it comes,
                 # internal pairs first, then cross pairs (the order the threads use)
                 for q in range(n_tot):
@@ -345,5 +354,5 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
         return done
 
     _STEPPERS[key] = recipe(run_steps, stepper, DIM, PP, PW, PERIODIC, rolling=ROLL,
-                            mesh=MESH)
+                            mesh=MESH, serial=SERIAL)
     return run_steps

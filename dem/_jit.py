@@ -47,7 +47,7 @@ log = logging.getLogger(__name__)
 #: seconds of a cold compile of each kernel family on the reference machine of
 #: docs/performance.md (``benchmarks/cold_start.py``): the time loop of spheres and
 #: disks with its measures, and the loop of level-set shapes
-COMPILE_S = {"sphere": 70, "shape": 65}
+COMPILE_S = {"sphere": 50, "shape": 80}
 
 
 def source_stamp():

@@ -84,6 +84,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/stability_map.py
 	$(BIN)/python benchmarks/angle_of_repose.py
 	$(BIN)/python benchmarks/compile_memory.py
+	NO_PARALLEL=1 $(BIN)/python benchmarks/loop_compile.py
 
 clean:
 	rm -rf $(VENV) .numba_cache .pytest_cache output

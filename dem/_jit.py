@@ -77,7 +77,8 @@ if "NUMBA_THREADING_LAYER" not in os.environ:
 #: run on threads, and nothing else is parallelised. Numba's other conversions (array
 #: expressions, ``a[:] = x``, reductions such as ``.max()`` become parallel loops of their
 #: own, and adjacent loops are fused) find nothing worth a thread in these kernels, and
-#: cost a third of a time loop's cold compile (``benchmarks/cold_start.py``).
+#: their passes cost a large part of a time loop's cold compile
+#: (``benchmarks/loop_compile.py``).
 PRANGE_ONLY = {"prange": True, "comprehension": False, "reduction": False,
                "inplace_binop": False, "setitem": False, "numpy": False, "stencil": False,
                "fusion": False}

@@ -70,12 +70,12 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
     comes, in the order the threaded sums use, so that the two loops give the same bits;
     the caller takes it for a scene that runs on one thread. It is a kernel of its own,
     not a branch of the threaded one, because numba's parallel passes cost in
-    proportion to the whole function: kept apart, each kind compiles in about half the
-    time of the two together, and a scene compiles only the kind it runs
-    (``benchmarks/cold_start.py``). The one-thread loop is still compiled with
-    ``parallel=True`` (its per-body loops run on the one thread): compiled without, the
-    same code ran 11x slower (0.268 s against 0.0245 s per 1,000 steps of a 400-disk
-    periodic RVE, one measurement each).
+    proportion to the whole function: a scene compiles only the kind it runs, and each
+    kind compiles without the other's copy of the contact code
+    (``benchmarks/loop_compile.py``: the one-thread loop of a 2D periodic RVE in 24 s
+    against 92 s for the kernel that held both). The one-thread loop is still compiled
+    with ``parallel=True`` (its per-body loops run on the one thread): compiled without,
+    the same code ran 11.7x slower in that benchmark.
     Only integers are captured, so the kernel caches on disk; the branches not taken
     fold away at compile time.
     """

@@ -329,7 +329,7 @@ def test_results_do_not_depend_on_thread_count():
         pytest.skip("needs NUMBA_NUM_THREADS >= 2 to compare 1 and 2 threads")
     law = dem.LinearSpring(kn=1e5, kt=4e4, mu=0.4, restitution=0.5)
     initial = _falling_box(seed=3)
-    results = []
+    results, kinds = [], []
     for threads in (1, 2):
         used = dem.Record(lambda s: numba.get_num_threads(), every=100)
         sim = dem.Simulation(
@@ -341,7 +341,9 @@ def test_results_do_not_depend_on_thread_count():
         )
         sim.run(300)
         assert set(used.values) == {threads}  # the loops really ran on that many
+        kinds.append(sim._loop_args(0, True, False)[0].dem_recipe[3]["serial"])
         results.append((sim.bodies, sim.contacts()))
+    assert kinds == [True, False]  # the one-thread loop, then the threaded one
     (b1, c1), (b2, c2) = results
     assert c1["i"].size > 20  # bodies and walls in contact, not all in free flight
     for name in ("pos", "vel", "rot", "ang_vel", "force", "torque"):

@@ -290,6 +290,25 @@ def couple_stress(sim, volume, ids=None):
     return mu / volume
 
 
+def fabric_anisotropy(fabric):
+    """Anisotropy ``a`` [-] of a contact fabric ``F = <n (x) n>`` (d, d): the amplitude
+    of the second-order Fourier fit of the density of contact normals,
+    ``E(n) ~ 1 + a_ij n_i n_j`` (Rothenburg & Bathurst 1989; Ouadfel & Rothenburg 2001),
+    whose coefficients follow from the deviatoric fabric ``F' = F - I/d``:
+    ``a_ij = 4 F'_ij``, ``a = sqrt(a_ij a_ij / 2)`` in 2D and ``a_ij = 15/2 F'_ij``,
+    ``a = sqrt(3/2 a_ij a_ij)`` in 3D. So ``E = 1 + a cos 2(theta - theta_a)`` in 2D and
+    ``1 + a (3 cos^2 theta - 1) / 3`` about an axis of symmetry in 3D: 0 for isotropic
+    normals. NaN for a fabric of no contacts (trace 0 or NaN)."""
+    f = np.asarray(fabric, dtype=np.float64)
+    d, trace = f.shape[0], float(np.trace(f))
+    if not trace > 0.0:
+        return float("nan")
+    dev = f / trace - np.eye(d) / d
+    if d == 2:
+        return float(np.sqrt(0.5 * np.sum((4.0 * dev) ** 2)))
+    return float(np.sqrt(1.5 * np.sum((7.5 * dev) ** 2)))
+
+
 class CollectionTracker(_Series):
     """Homogenised stress (eq 24) and tangent (eq 29) of a collection of bodies.
 

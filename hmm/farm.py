@@ -9,8 +9,9 @@ A farm owns the micro models of the Gauss points (flat index ``e * n_qp + q``: e
 ``commit()`` / ``rollback()``
     after a converged / a failed load step;
 ``measures()``
-    per-point arrays of the committed state (void ratio, coordination, ran_dem) and
-    the cost of the last trial (seconds, DEM steps).
+    per-point arrays of the committed state (:func:`hmm.micro.measure_shapes`: void
+    ratio, coordination, ran_dem, fabric, anisotropy, couple stress) and the cost of
+    the last trial (seconds, DEM steps).
 
 :class:`SerialFarm` runs them in this process; an MPI farm with the same calls
 distributes them over ranks. A micro model that raises ends the trial with a
@@ -23,13 +24,35 @@ ends it on every rank with :class:`~hmm.signals.Interrupted`; serially,
 """
 
 import logging
+import math
 import time
 
 import numpy as np
 
+from .micro import measure_shapes
 from .signals import SignalWatch, log_pids, raise_pending
 
 log = logging.getLogger(__name__)
+
+
+def flatten_measures(rows, dim):
+    """(n, width) array of the micro models' ``measures()`` rows, in the order and
+    shapes of :func:`hmm.micro.measure_shapes` (what a farm gathers)."""
+    shapes = measure_shapes(dim)
+    width = sum(math.prod(shape) for shape in shapes.values())
+    return np.array([np.concatenate([np.ravel(np.asarray(r[k], dtype=np.float64))
+                                     for k in shapes]) for r in rows],
+                    dtype=np.float64).reshape(len(rows), width)
+
+
+def unflatten_measures(flat, dim):
+    """The dict of (n, ...) arrays of :func:`flatten_measures`' rows ``flat``."""
+    out, at = {}, 0
+    for k, shape in measure_shapes(dim).items():
+        size = math.prod(shape)
+        out[k] = flat[:, at:at + size].reshape(flat.shape[0], *shape)
+        at += size
+    return out
 
 
 def mpi_world():
@@ -109,8 +132,8 @@ class SerialFarm:
             m.rollback()
 
     def measures(self):
-        rows = [m.measures() for m in self.models]
-        out = {k: np.array([r[k] for r in rows]) for k in rows[0]}
+        out = unflatten_measures(flatten_measures(
+            [m.measures() for m in self.models], self.dim), self.dim)
         out["cost"] = self.cost.copy()
         out["steps"] = self.steps.copy()
         return out
@@ -375,14 +398,12 @@ class MPIFarm:
 
     def _measures(self):
         mine = list(self._mine())
-        rows = [self.models[g].measures() for g in mine]
-        keys = ("void_ratio", "coordination", "ran_dem")
-        own = np.array([[r[k] for k in keys] for r in rows]).reshape(len(mine), 3)
-        full = self._gather(own, 3)
+        own = flatten_measures([self.models[g].measures() for g in mine], self.dim)
+        width = own.shape[1]
+        full = self._gather(own, width)
         if self.rank != 0:
             return None
-        full = full.reshape(self.n, 3)
-        out = {k: full[:, i] for i, k in enumerate(keys)}
+        out = unflatten_measures(full.reshape(self.n, width), self.dim)
         out["cost"] = self.cost.copy()
         out["steps"] = self.steps.copy()
         return out

@@ -15,10 +15,15 @@
             step's sym G), deviatoric_strain [-], pressure p = -tr(sigma)/d [Pa]
             (compression positive, named for its sign; ``mean_stress`` in files
             of version 1), stress_ratio q/p [-], void_ratio, coordination,
-            dem_fraction (share of points that ran DEM)
+            dem_fraction (share of points that ran DEM), fabric_xx ... [-] (the
+            contact fabric <n (x) n>), anisotropy [-] (its second-order Fourier
+            amplitude, :func:`dem.observers.fabric_anisotropy`; NaN for analytic
+            laws); with rolling resistance, couple_stress_zx, _zy (2D) or _xx ...
+            _zz (3D; moment component, then the plane's normal) [N/m]
         gauss/stress (n_gp, d, d), gauss/strain (n_gp, d, d),
         gauss/increment (n_gp, d, d) (what the micro models got: G, not
         symmetrised, under finite kinematics), gauss/ran_dem (n_gp,),
+        gauss/fabric (n_gp, d, d), gauss/couple_stress (n_gp, r, d) (rolling only),
         gauss/points (n_gp, d) [m] -- finite kinematics: current positions
     /curve/  load_factor, displacement, force (per supported boundary, per step;
              forces on the current boundary)
@@ -93,6 +98,10 @@ def field_units(dim):
         (step + r"(gauss/)?(pressure|pore_pressure)", "Pa", COMPRESSION),
         (step + r"stress_ratio", ONE, "q/p, non-negative where p > 0"),
         (step + r"(void_ratio|coordination|dem_fraction|gauss/ran_dem)", ONE, None),
+        (step + r"(fabric_[xyz]{2}|gauss/fabric)", ONE, "<n (x) n> of the contact normals"),
+        (step + r"anisotropy", ONE, "of the fabric, 0 when isotropic"),
+        (step + r"(couple_stress_[xyz]{2}|gauss/couple_stress)", "N/m",
+         "moment component, then the plane's normal"),
         (step + r"(darcy_flux_[xyz]|gauss/darcy_flux)", "m/s", None),
         (r"curve/(load_factor|iterations|dem_points)", ONE, None),
         (r"curve/displacement/.+", "m", None),
@@ -177,6 +186,9 @@ class Output:
                                                       porous is not None, self.platens)}
         self.f, self._kept, self._closed, self._out = None, None, False, None
         self._config, self._units = config, field_units(macro.dim)
+        #: the micro law has rolling resistance: the frames hold the couple stress
+        self.rolling = isinstance(config, dict) and \
+            float(config.get("micro", {}).get("mu_roll", 0.0)) > 0.0
         self._old_version = None
         if restart is not None:
             self._reopen(*restart)
@@ -393,8 +405,20 @@ class Output:
         p, ratio = _p_q(sig)
         g.create_dataset("pressure", data=emean(p))
         g.create_dataset("stress_ratio", data=emean(ratio))
-        for k in ("void_ratio", "coordination"):
+        for k in ("void_ratio", "coordination", "anisotropy"):
             g.create_dataset(k, data=emean(np.asarray(measures[k], float)))
+        fabric = np.asarray(measures["fabric"], float)
+        for a, b in _components(d):
+            g.create_dataset(f"fabric_{_AXES[a]}{_AXES[b]}", data=emean(fabric[:, a, b]))
+        g.create_dataset("gauss/fabric", data=fabric)
+        if self.rolling:
+            couple = np.asarray(measures["couple_stress"], float)
+            moments = "z" if d == 2 else _AXES
+            for a, m in enumerate(moments):
+                for b in range(d):
+                    g.create_dataset(f"couple_stress_{m}{_AXES[b]}",
+                                     data=emean(couple[:, a, b]))
+            g.create_dataset("gauss/couple_stress", data=couple)
         g.create_dataset("dem_fraction", data=emean(np.asarray(measures["ran_dem"], float)))
         g.create_dataset("gauss/stress", data=sig)
         g.create_dataset("gauss/strain", data=eps)
@@ -508,7 +532,10 @@ class Output:
                     self.dir / "load_displacement.png", data="fields.h5:/curve")
         if self.porous is not None:
             self._pressure_plot(plt, c)
-        if d != 2 or not self.frames:
+        if not self.frames:
+            return
+        if d == 3:
+            self._slices()
             return
         with h5py.File(self.path, "r") as f:
             name = self.frames[-1][0]
@@ -529,6 +556,23 @@ class Output:
             f"last step, displacements x {scale:.3g}")
         save_figure(fig, self.dir / "deviatoric_strain.png",
                     data=f"fields.h5:/{self.frames[-1][0]}")
+
+    def _slices(self):
+        """``deviatoric_strain.png`` of a 3D run: the last frame's deviatoric strain on
+        three mid-planes (:func:`hmm.plots.slices_figure`)."""
+        from .plots import slices_figure
+
+        name = self.frames[-1][0]
+        mesh = self.macro.mesh
+        with h5py.File(self.path, "r") as f:
+            dev = f[name]["deviatoric_strain"][()]
+            pts = f[name]["points"][()] if self.macro.finite else \
+                mesh.p.T + f[name]["displacement"][()]
+        cells = mesh.t[_HEX_ORDER].T if isinstance(mesh, MeshHex) else mesh.t[:4].T
+        fig = slices_figure(pts, cells, dev, "deviatoric strain [-]",
+                            "last step, on the deformed mesh" if self.macro.finite
+                            else "last step, displacements x 1")
+        save_figure(fig, self.dir / "deviatoric_strain.png", data=f"fields.h5:/{name}")
 
     def _pressure_plot(self, plt, c):
         """``pore_pressure.png``: the pore pressure over time (maximum and mean over

@@ -18,8 +18,11 @@ points (YADE's FEMxDEM pattern):
 ``rollback()``
     Forget the trials since the last commit (the step is cut and retried).
 ``measures()``
-    A dict of floats describing the committed state (``void_ratio``,
-    ``coordination``, ``ran_dem``: 1.0 where the DEM ran), written with the fields.
+    The committed state's measures, written with the fields: the names and shapes of
+    :func:`measure_shapes` (``void_ratio``, ``coordination``, ``ran_dem``: 1.0 where
+    the DEM ran, the contact ``fabric`` <n (x) n> and its ``anisotropy``
+    (:func:`dem.observers.fabric_anisotropy`), the ``couple_stress`` [N/m] of rolling
+    resistance); NaN where a model has no such thing.
 
 Only objective models run under finite kinematics: the DEM RVE (its periodic cell
 follows the whole velocity gradient, spin included), :class:`Adaptive` built with
@@ -59,6 +62,21 @@ def lame(young, poisson):
     return young * poisson / ((1.0 + poisson) * (1.0 - 2.0 * poisson)), g
 
 
+def measure_shapes(dim):
+    """The measures every micro model gives (:meth:`MicroModel.measures`), by name,
+    with their shapes in ``dim`` dimensions: the contract a farm gathers by."""
+    return {"void_ratio": (), "coordination": (), "ran_dem": (), "anisotropy": (),
+            "fabric": (dim, dim), "couple_stress": (1 if dim == 2 else 3, dim)}
+
+
+def no_measures(dim, ran_dem=False):
+    """:func:`measure_shapes` filled with NaN (``ran_dem`` as given)."""
+    out = {k: np.full(shape, math.nan) if shape else math.nan
+           for k, shape in measure_shapes(dim).items()}
+    out["ran_dem"] = float(ran_dem)
+    return out
+
+
 class MicroModel:
     """Base of the micro models (see the module docstring for the protocol)."""
 
@@ -77,8 +95,7 @@ class MicroModel:
         raise NotImplementedError
 
     def measures(self):
-        return {"void_ratio": math.nan, "coordination": math.nan,
-                "ran_dem": float(self.ran_dem)}
+        return no_measures(self.dim, self.ran_dem)
 
     def export(self):
         """The committed state as a flat dict of arrays (to move a point to another
@@ -408,9 +425,16 @@ class DEMMicroModel(MicroModel):
     def measures(self):
         if self._moved:
             self.rollback()
+        from dem.observers import fabric_anisotropy
+
         r = self.rve.response(tangent=False)
+        d = r["stress"].shape[0]
+        fabric = r["fabric"] if r["n_contacts"] > 0 else np.full((d, d), math.nan)
+        couple = r.get("couple_stress")
         return {"void_ratio": r["void_ratio"], "coordination": r["coordination"],
-                "ran_dem": 1.0}
+                "ran_dem": 1.0, "fabric": fabric, "anisotropy": fabric_anisotropy(fabric),
+                "couple_stress": np.zeros(measure_shapes(d)["couple_stress"])
+                if couple is None else couple}
 
 
 def stress_ratio(sig):

@@ -6,6 +6,8 @@
 ``fields_figure``
     The last frame's deviatoric strain and share of Gauss points running DEM (or
     void ratio) on the mesh of a 2D run (``deviatoric_strain.png``).
+``slices_figure``
+    A cell field of a 3D run on three mid-planes (``deviatoric_strain.png`` in 3D).
 
 Each function builds a :class:`matplotlib.figure.Figure` without pyplot (no global
 state), with labelled axes in sensible units, labelled colour bars and no legend over
@@ -160,5 +162,95 @@ def fields_figure(points, cells, panels, title):
         bar = fig.colorbar(pc, ax=ax, shrink=0.8, label=label)
         bar.formatter.set_useOffset(False)
         bar.update_ticks()
+    fig.suptitle(title, fontsize=10)
+    return fig
+
+
+#: corner pairs of the edges of a hexahedron (VTK vertex order) and of a tetrahedron
+_EDGES = {8: ((0, 1), (1, 2), (2, 3), (3, 0), (4, 5), (5, 6), (6, 7), (7, 4), (0, 4),
+              (1, 5), (2, 6), (3, 7)),
+          4: ((0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3))}
+
+
+def slice_polygons(points, cells, axis, at):
+    """The cut of a 3D mesh of straight-edged hexahedra (corners in VTK order) or
+    tetrahedra by the plane ``x[axis] = at``.
+
+    Returns the polygons, each (k, 2) in the two other coordinates (in increasing
+    axis order) with its corners in order around it, and the indices of the cells
+    they cut. A vertex on the plane counts as beyond it, so a face lying in the plane
+    is drawn once, by the cell before it.
+    """
+    pts = np.asarray(points, dtype=float)
+    cells = np.asarray(cells)
+    keep = [a for a in range(3) if a != axis]
+    side = pts[:, axis] - at
+    edges = _EDGES[cells.shape[1]]
+    polys, cut_cells = [], []
+    for c, cell in enumerate(cells):
+        cut = []
+        for i, j in edges:
+            si, sj = side[cell[i]], side[cell[j]]
+            if (si < 0.0) != (sj < 0.0):
+                pi, pj = pts[cell[i], keep], pts[cell[j], keep]
+                cut.append(pi + si / (si - sj) * (pj - pi))
+        if len(cut) >= 3:
+            q = np.array(cut)
+            mid = q.mean(axis=0)
+            polys.append(q[np.argsort(np.arctan2(q[:, 1] - mid[1], q[:, 0] - mid[0]))])
+            cut_cells.append(c)
+    return polys, np.array(cut_cells, dtype=np.int64)
+
+
+def slices_figure(points, cells, values, label, title, cmap="viridis"):
+    """A cell field of a 3D mesh on three planes through the middle of its bounding
+    box (through the cell centre nearest the middle along each axis): normal to x
+    (drawn z across, y up), to z (x across, y up) and to y (x across, z up), with one
+    colour scale (:func:`slice_polygons`).
+
+    Parameters
+    ----------
+    points : (n_vertices, 3) array
+        Vertex coordinates to draw [m] (deformed, or displaced by a scale factor).
+    cells : (n_cells, 8 or 4) int array
+        Hexahedron corners in VTK order, or tetrahedron corners.
+    values : (n_cells,) array
+        The field, in the unit ``label`` names.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    from matplotlib.collections import PolyCollection
+    from matplotlib.figure import Figure
+
+    pts = np.asarray(points, dtype=float)
+    scale, unit = length_unit(pts)
+    mid = 0.5 * (pts.min(axis=0) + pts.max(axis=0))
+    # through the cell centres nearest the middle: a structured mesh puts faces on the
+    # mid-planes themselves, and a deformed face crosses a plane laid along it
+    centres = pts[np.asarray(cells)].mean(axis=1)
+    at = centres[np.argmin(np.abs(centres - mid), axis=0), [0, 1, 2]]
+    val = np.asarray(values, dtype=float)
+    lim = _limits(val, (None, None))
+    fig = Figure(figsize=(12.5, 5), layout="constrained")
+    axs = fig.subplots(1, 3)
+    for ax, (axis, across, up) in zip(axs, ((0, 2, 1), (2, 0, 1), (1, 0, 2)),
+                                      strict=True):
+        polys, cut = slice_polygons(pts, cells, axis, at[axis])
+        keep = [a for a in range(3) if a != axis]
+        order = [keep.index(across), keep.index(up)]
+        pc = PolyCollection([scale * q[:, order] for q in polys], array=val[cut],
+                            cmap=cmap, edgecolors="k", linewidths=0.3)
+        pc.set_clim(*lim)
+        ax.add_collection(pc)
+        ax.autoscale()
+        ax.set_aspect("equal")
+        ax.set_xlabel(f"{_AXES[across]} [{unit}]")
+        ax.set_ylabel(f"{_AXES[up]} [{unit}]")
+        ax.set_title(f"{_AXES[axis]} = {scale * at[axis]:.3g} {unit}", fontsize=10)
+    bar = fig.colorbar(pc, ax=axs, shrink=0.8, label=label)
+    bar.formatter.set_useOffset(False)
+    bar.update_ticks()
     fig.suptitle(title, fontsize=10)
     return fig

@@ -1,6 +1,26 @@
 """Small input files shared by the tests: problem files of ``hmm run`` (run, readers,
 signals, environment failures) with linear-elastic micro models, so a run takes a
-second; sweeps of ``hmm batch`` (batch, MPI batch, signals) of small disk packings."""
+second; sweeps of ``hmm batch`` (batch, MPI batch, signals) of small disk packings;
+the 3D triaxial example at the tests' size (serial and MPI)."""
+
+from pathlib import Path
+
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples"
+
+
+def small_triaxial():
+    """examples/triaxial_3d.toml at the size of the tests: 1 x 2 x 1 hex20 (16 Gauss
+    points), 60-sphere RVEs, the top pushed 0.2 mm (0.2 %) in two steps."""
+    from hmm.problem import load_problem
+
+    prob = load_problem(EXAMPLES / "triaxial_3d.toml")
+    prob["mesh"]["cells"] = [1, 2, 1]
+    prob["micro"]["count"] = 60
+    prob["load"]["steps"] = 2
+    next(d for d in prob["dirichlet"]
+         if d["boundary"] == "top" and d["component"] == "y")["value"] = -0.0002
+    prob["output"]["every"] = 1
+    return prob
 
 
 def elastic_problem(steps, cells=(2, 2), checkpoint_every=None):

@@ -7,7 +7,8 @@ import pytest
 from figure_checks import (assert_colour_bars_labelled, assert_texts_inside,
                            assert_ticks_apart, colour_bars, panels, render)
 
-from hmm.plots import fields_figure, length_unit, load_displacement_figure, scaled_unit
+from hmm.plots import (fields_figure, length_unit, load_displacement_figure, scaled_unit,
+                       slice_polygons, slices_figure)
 
 
 def _curve(steps=9, push=-8e-4, force=1.4e4):
@@ -85,3 +86,55 @@ def test_the_field_figure_labels_axes_and_colour_bars():
 def test_units_follow_the_magnitude():
     assert scaled_unit([2.5e6], "N")[1] == "MN" and scaled_unit([0.5], "N")[1] == "N"
     assert length_unit([3e-7]) == (1e6, "µm") and length_unit([2.0]) == (1.0, "m")
+
+
+def _area(q):
+    x, y = q[:, 0], q[:, 1]
+    return 0.5 * abs(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1)))
+
+
+def _distorted_box(element, cells, seed=3):
+    """A 5 x 10 x 5 cm box of hexahedra (corners in VTK order) or tetrahedra, its
+    interior vertices moved by up to a fifth of a cell."""
+    import hmm
+    from hmm.io import _HEX_ORDER
+
+    size = np.array([0.05, 0.1, 0.05])
+    mesh = hmm.structured_mesh(element, list(size), cells)
+    p = mesh.p.copy()
+    inner = np.all((p > 1e-12) & (p < size[:, None] - 1e-12), axis=0)
+    p[:, inner] += np.random.default_rng(seed).uniform(-0.2, 0.2, (3, inner.sum())) * \
+        (size / cells)[:, None]
+    return p.T, (mesh.t[_HEX_ORDER].T if element == "hex1" else mesh.t.T), size
+
+
+@pytest.mark.parametrize("element", ["hex1", "tet1"])
+def test_slices_of_a_distorted_mesh_tile_the_cross_section(element):
+    """Whatever the cells' shapes, the cut polygons of a plane through a box tile its
+    cross-section exactly (their areas sum to it), every cut cell straddles the plane,
+    and a plane through a layer of vertices draws each face once."""
+    pts, cells, size = _distorted_box(element, [2, 4, 2])
+    for axis, at in ((0, 0.0137), (1, 0.0421), (2, 0.031), (1, 0.05)):
+        polys, cut = slice_polygons(pts, cells, axis, at)
+        area = np.prod(np.delete(size, axis))
+        assert sum(_area(q) for q in polys) == pytest.approx(area, rel=1e-12)
+        side = pts[cells[cut], axis] - at
+        assert np.all((side.min(axis=1) < 0.0) & (side.max(axis=1) >= 0.0))
+
+
+def test_the_slices_figure_shows_three_planes_on_one_colour_scale():
+    pts, cells, _ = _distorted_box("hex1", [2, 4, 2])
+    values = np.linspace(0.0, 0.02, len(cells))
+    fig = slices_figure(pts, cells, values, "deviatoric strain [-]", "last step")
+    renderer = render(fig)
+    axs = panels(fig)
+    assert len(axs) == 3 and len(colour_bars(fig)) == 1
+    assert_colour_bars_labelled(fig)
+    assert_texts_inside(fig, renderer)
+    assert [(ax.get_xlabel(), ax.get_ylabel()) for ax in axs] == [
+        ("z [mm]", "y [mm]"), ("x [mm]", "y [mm]"), ("x [mm]", "z [mm]")]
+    assert [ax.get_title().split(" = ")[0] for ax in axs] == ["x", "z", "y"]
+    assert {ax.collections[0].get_clim() for ax in axs} == {(0.0, 0.02)}
+    for ax in axs:  # the planes run through the middle of the box
+        assert abs(float(ax.get_title().split(" = ")[1].split()[0]) -
+                   {"x": 25.0, "z": 25.0, "y": 50.0}[ax.get_title()[0]]) < 12.5

@@ -174,3 +174,39 @@ def test_a_saturated_run_on_two_ranks_equals_one_rank_and_restarts(tmp_path_fact
     else:
         assert full is None and again is None
         _all_ranks_agree(None)
+
+
+def test_a_small_3d_triaxial_on_two_ranks_equals_one_rank_bit_for_bit(tmp_path_factory):
+    """examples/triaxial_3d.toml at small size (1 x 2 x 1 hex20, 60-sphere RVEs, two
+    steps; tests/hmm/test_triaxial_3d.py) farmed on two ranks: displacements,
+    stresses and the gathered measures (the contact fabric, void ratio) equal a
+    serial farm's bit for bit."""
+    import h5py
+
+    from hmm.problem_build import build_loads
+    from problems import small_triaxial
+
+    base = COMM.bcast(str(tmp_path_factory.mktemp("tri")) if COMM.rank == 0 else None)
+    problem = small_triaxial()
+    full = run_problem(problem, f"{base}/par", progress=False)
+    if COMM.rank == 0:
+        macro = build_macro(problem)
+        sup, fc, fr, loads = build_loads(problem, macro)
+        factory = model_factory(problem, macro.dim, points=macro.gauss_points())
+        farm = SerialFarm([factory(g) for g in range(macro.n_gp)])
+        ser = Solver(macro, farm, sup, fc, fr,
+                     SolverSettings.from_section(problem["solver"]), loads)
+        for k in range(1, 3):
+            ser.advance(k / 2 - ser.t)
+        m = farm.measures()
+        with h5py.File(f"{base}/par/fields.h5") as f:
+            last = f["steps/00002"]
+            same = {"u": np.array_equal(full["u"], ser.u),
+                    "sigma": np.array_equal(full["sigma"], ser.sigma),
+                    "fabric": np.array_equal(last["gauss/fabric"][()], m["fabric"]),
+                    "void": np.array_equal(last["void_ratio"][()], m["void_ratio"].reshape(
+                        macro.n_elems, macro.n_qp).mean(axis=1))}
+        _all_ranks_agree(all(same.values()), f"two ranks against one: {same}")
+    else:
+        assert full is None
+        _all_ranks_agree(None)

@@ -85,6 +85,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/angle_of_repose.py
 	$(BIN)/python benchmarks/compile_memory.py
 	NO_PARALLEL=1 $(BIN)/python benchmarks/loop_compile.py
+	$(BIN)/python benchmarks/triaxial_3d.py
 
 clean:
 	rm -rf $(VENV) .numba_cache .pytest_cache output

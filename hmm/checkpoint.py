@@ -30,7 +30,7 @@ from dem.io.files import write_h5_atomic
 from dem.io.hdf5 import read_bounded
 from dem.io.meta import COMPRESSION, ONE, TENSION, label, rules, stamp
 
-from .io import field_units
+from .io import WORK_CURVES, field_units
 
 FORMAT = "hmm.checkpoint"
 VERSION = 1
@@ -165,7 +165,11 @@ class Checkpoint:
                 raise ValueError(f"solver {what} {solver['t']} is outside [0, {end:g}]")
             curve = {}
             for name in curve_names:
+                if name in WORK_CURVES and name not in self.f["curve"]:
+                    continue  # a checkpoint of an earlier version: filled below
                 curve[name] = self._array(self.f["curve"], name, None, "fiu")
+            for name in set(WORK_CURVES) & set(curve_names) - set(curve):
+                curve[name] = np.full(len(curve["load_factor"]), np.nan)
             for g in range(macro.n_gp):
                 if not isinstance(self.f.get(f"micro/{g:06d}"), h5py.Group):
                     raise ValueError(f"micro/{g:06d} is missing")

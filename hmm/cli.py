@@ -263,16 +263,8 @@ def _solve(problem, args, prog):
         comm.Abort(EXIT_FAILED)
     if summary is None:  # a worker rank: rank 0 reports
         return EXIT_OK
-    its = summary["iterations"] or [0]
-    print(f"{summary['steps']} load steps, {sum(its)} Newton iterations "
-          f"({min(its)}-{max(its)} per step), {summary['cuts']} step cuts, "
-          f"{summary['trials']} farm trials; solved in {summary['solve_time']:.1f} s")
-    if problem["micro"]["model"] in ("dem", "adaptive"):  # analytic models never run DEM
-        print(f"Gauss points that ran DEM: {summary['dem_points']} of "
-              f"{summary['gauss_points']}")
-    if "p" in summary:  # a saturated problem
-        print(f"time {summary['time']:.6g} s, pore pressure {summary['p'].min():.4g} "
-              f"to {summary['p'].max():.4g} Pa")
+    for line in run_lines(problem, summary):
+        print(line)
     for line in reaction_lines(summary):
         print(line)
     print("output:")
@@ -280,6 +272,28 @@ def _solve(problem, args, prog):
         if Path(f).exists():
             print(f"  {f}")
     return EXIT_OK
+
+
+def run_lines(problem, summary):
+    """The lines ``hmm run`` prints of a finished run's ``summary``: the solver's
+    work, where the DEM ran and what the RVE calls cost, a saturated run's clock and
+    pressures."""
+    its = summary["iterations"] or [0]
+    out = [f"{summary['steps']} load steps, {sum(its)} Newton iterations "
+           f"({min(its)}-{max(its)} per step), {summary['cuts']} step cuts, "
+           f"{summary['trials']} farm trials; solved in {summary['solve_time']:.1f} s"]
+    if problem["micro"]["model"] in ("dem", "adaptive"):  # analytic models never run DEM
+        out.append(f"Gauss points that ran DEM: {summary['dem_points']} of "
+                   f"{summary['gauss_points']}")
+        calls, seconds, steps = (summary["work"][k] for k in
+                                 ("rve_calls", "rve_seconds", "dem_steps"))
+        if calls > 0:
+            out.append(f"RVE calls: {calls:.0f}, on average {1e3 * seconds / calls:.3g} ms "
+                       f"and {steps / calls:.0f} DEM steps each")
+    if "p" in summary:  # a saturated problem
+        out.append(f"time {summary['time']:.6g} s, pore pressure {summary['p'].min():.4g} "
+                   f"to {summary['p'].max():.4g} Pa")
+    return out
 
 
 def reaction_lines(summary):

@@ -11,7 +11,8 @@ A farm owns the micro models of the Gauss points (flat index ``e * n_qp + q``: e
 ``measures()``
     per-point arrays of the committed state (:func:`hmm.micro.measure_shapes`: void
     ratio, coordination, ran_dem, fabric, anisotropy, couple stress) and the cost of
-    the last trial (seconds, DEM steps).
+    the last trial (seconds, DEM steps), and ``work``: the RVE calls, their seconds
+    and DEM steps since the farm was made.
 
 :class:`SerialFarm` runs them in this process; an MPI farm with the same calls
 distributes them over ranks. A micro model that raises ends the trial with a
@@ -104,6 +105,9 @@ class SerialFarm:
         self._sig = np.empty((n, d, d))
         self._c = np.empty((n, d, d, d, d))
         self.n_trials = 0
+        #: the farm's work since it was made: RVE (micro model) calls, their seconds
+        #: (summed over points) and DEM steps
+        self.work = np.zeros(3)
 
     def trial(self, deps):
         raise_pending()
@@ -120,6 +124,7 @@ class SerialFarm:
                                    _recoverable(err)) from err
             self.cost[k] = time.perf_counter() - t0
             self.steps[k] = getattr(m, "steps", 0)
+            self.work += (1.0, self.cost[k], self.steps[k])
         self.n_trials += 1
         return self._sig.copy(), self._c.copy()
 
@@ -136,6 +141,7 @@ class SerialFarm:
             [m.measures() for m in self.models], self.dim), self.dim)
         out["cost"] = self.cost.copy()
         out["steps"] = self.steps.copy()
+        out["work"] = self.work.copy()
         return out
 
     def stress(self):
@@ -211,6 +217,7 @@ class MPIFarm:
         self.cost = np.zeros(self.n)
         self.steps = np.zeros(self.n, np.int64)
         self.n_trials = 0
+        self.work = np.zeros(3)  # as SerialFarm.work (rank 0)
         self.n_migrated = 0  # points moved between ranks so far
         self._open = True
         log_pids(comm)
@@ -362,6 +369,7 @@ class MPIFarm:
         cost = cost.reshape(self.n, 2)
         self.cost[:] = cost[:, 0]
         self.steps[:] = cost[:, 1]
+        self.work += (np.count_nonzero(cost[:, 0] > 0.0), cost[:, 0].sum(), cost[:, 1].sum())
         bad = [f for f in failures if f is not None]
         if bad:
             raise MicroFailure(*min(bad))
@@ -406,6 +414,7 @@ class MPIFarm:
         out = unflatten_measures(full.reshape(self.n, width), self.dim)
         out["cost"] = self.cost.copy()
         out["steps"] = self.steps.copy()
+        out["work"] = self.work.copy()
         return out
 
     def _stress(self):

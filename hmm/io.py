@@ -26,7 +26,9 @@
         gauss/fabric (n_gp, d, d), gauss/couple_stress (n_gp, r, d) (rolling only),
         gauss/points (n_gp, d) [m] -- finite kinematics: current positions
     /curve/  load_factor, displacement, force (per supported boundary, per step;
-             forces on the current boundary)
+             forces on the current boundary); iterations, dem_points; the work of
+             each step: work/rve_calls, work/rve_seconds (summed over the points),
+             work/dem_steps
 
 A saturated problem (:mod:`hmm.porous`) adds, per step (attrs: time [s]):
 ``pore_pressure`` (n_vertices,) [Pa] (compression positive) on the nodes; element
@@ -103,12 +105,18 @@ def field_units(dim):
         (step + r"(couple_stress_[xyz]{2}|gauss/couple_stress)", "N/m",
          "moment component, then the plane's normal"),
         (step + r"(darcy_flux_[xyz]|gauss/darcy_flux)", "m/s", None),
-        (r"curve/(load_factor|iterations|dem_points)", ONE, None),
+        (r"curve/(load_factor|iterations|dem_points|work/rve_calls|work/dem_steps)", ONE,
+         None),
+        (r"curve/work/rve_seconds", "s", "summed over the Gauss points"),
         (r"curve/displacement/.+", "m", None),
         (r"curve/force/.+", force, "force the support exerts on the body"),
         (r"curve/time", "s", None),
         (r"curve/pore_pressure/(max|mean)", "Pa", COMPRESSION),
     )
+
+#: the work of each load step in the curve: RVE (micro model) calls, their seconds summed
+#: over the Gauss points (every rank's), and DEM steps; failed tries and cut steps count
+WORK_CURVES = ("work/rve_calls", "work/rve_seconds", "work/dem_steps")
 
 #: XDMF topology of each mesh kind (its corner vertices, whatever the element order)
 _TOPOLOGY = ((MeshQuad, "Quadrilateral"), (MeshTri, "Triangle"), (MeshHex, "Hexahedron"),
@@ -186,6 +194,7 @@ class Output:
                                                       porous is not None, self.platens)}
         self.f, self._kept, self._closed, self._out = None, None, False, None
         self._config, self._units = config, field_units(macro.dim)
+        self._work = np.zeros(3)  # the farm's work (measures["work"]) at the last write
         #: the micro law has rolling resistance: the frames hold the couple stress
         self.rolling = isinstance(config, dict) and \
             float(config.get("micro", {}).get("mu_roll", 0.0)) > 0.0
@@ -240,7 +249,7 @@ class Output:
         """The series of the load-displacement curve (``/curve/`` of ``fields.h5``),
         the platens' displacements, and a saturated problem's clock and pore
         pressures."""
-        return ["load_factor", "iterations", "dem_points"] + [
+        return ["load_factor", "iterations", "dem_points", *WORK_CURVES] + [
             f"{kind}/{b}" for b in boundaries for kind in ("displacement", "force")] \
             + [f"displacement/{b}" for b in platens if b not in boundaries] \
             + (["time", "pore_pressure/max", "pore_pressure/mean"] if saturated else [])
@@ -334,6 +343,10 @@ class Output:
             self.curve["pore_pressure/mean"].append(float(pn.mean()))
         self.curve["iterations"].append(iterations)
         self.curve["dem_points"].append(int(np.sum(measures["ran_dem"] > 0)))
+        work = np.asarray(measures.get("work", np.full(3, np.nan)), dtype=np.float64)
+        for name, done in zip(WORK_CURVES, work - self._work, strict=True):
+            self.curve[name].append(done)
+        self._work = work
         for b in self.boundaries:
             disp = np.array([u[macro.dofs(b, c)].mean() for c in range(d)])
             self.curve[f"displacement/{b}"].append(disp)

@@ -55,7 +55,8 @@ def run_problem(problem, directory, overwrite=False, progress=None, echo=None,
     ``restart`` continues from ``directory/checkpoint.h5`` (see
     :mod:`hmm.checkpoint`); ``stop_after`` ends the run after that load step (a
     checkpoint is written there), to split a long run into jobs. Returns (on rank 0)
-    a dict summary: steps, iterations, cuts, wall time, final load factor,
+    a dict summary: steps, iterations, cuts, wall time, final load factor, the farm's
+    ``work`` (``rve_calls``, ``rve_seconds`` summed over the points, ``dem_steps``),
     reactions (per support, ``(d,)`` [N/m in 2D, N in 3D]) and the components each
     support holds (``held``), output files.
     """
@@ -255,6 +256,8 @@ def _solve(problem, macro, farm, supports, loading, out, progress, say, t0,
             "held": solver.held_components(), "dim": macro.dim,
             "u": solver.u.copy(), "sigma": solver.sigma.copy(),
             "migrated": getattr(farm, "n_migrated", 0),
+            "work": dict(zip(("rve_calls", "rve_seconds", "dem_steps"),
+                             m["work"].tolist(), strict=True)),
             "files": [str(out.dir / f) for f in ("fields.h5", "fields.xdmf",
                                                  "load_displacement.png",
                                                  "deviatoric_strain.png")]

@@ -253,7 +253,9 @@ def test_retaining_wall_small_passive_pressure(tmp_path):
     """The retaining-wall file at small size (2 x 1 cells, 20-disk RVEs with rolling
     resistance, the wall advanced 0.4 mm in two steps): at rest the wall carries the
     RVEs' 100 kPa over its height, K = F / (q H) = 1 to 1 %, and K rises with every
-    step of the wall into the backfill; the base and far side carry the surcharge."""
+    step of the wall into the backfill; the base and far side carry the surcharge.
+    The fields hold the couple stress of the rolling moments, per Gauss point and as
+    element means."""
     import h5py
 
     from hmm.run import run_problem
@@ -271,9 +273,17 @@ def test_retaining_wall_small_passive_pressure(tmp_path):
         k = f["curve/force/left"][:, 0] / (q * height)
         moved = f["curve/displacement/left"][:, 0]
         base = f["curve/force/bottom"][0, 1]
+        last = f["steps/00002"]
+        couple = last["gauss/couple_stress"][()]  # the rolling moments' couple stress
+        means = [last[f"couple_stress_z{a}"][()] for a in "xy"]
+        unit = last["gauss/couple_stress"].attrs["unit"]
     assert k[0] == pytest.approx(1.0, abs=1e-2)
     assert np.all(np.diff(moved) > 0.0) and np.all(np.diff(k) > 0.05)
     assert base == pytest.approx(q * length, rel=1e-2)
+    assert couple.shape == (8, 1, 2) and unit == "N/m"  # 2 quad8 of 4 points
+    assert np.all(np.isfinite(couple)) and np.abs(couple).max() > 0.0
+    for a in range(2):
+        np.testing.assert_allclose(means[a], couple[:, 0, a].reshape(2, 4).mean(axis=1))
 
 
 def test_strip_footing_small_load_settlement(tmp_path):

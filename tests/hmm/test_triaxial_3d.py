@@ -104,6 +104,23 @@ def test_the_small_triaxial_compresses_and_its_contacts_turn_to_the_axis(triaxia
     assert np.all(a2 > a0)
 
 
+def test_the_small_triaxial_counts_its_work(triaxial):
+    """The curve's work per load step adds up to the run's: every farm trial calls
+    each of the 16 RVEs once, and each call runs DEM steps and takes time; a run
+    without rolling resistance writes no couple stress."""
+    base, full, _ = triaxial
+    with h5py.File(base / "full" / "fields.h5") as f:
+        work = {k: f["curve/work"][k][()] for k in ("rve_calls", "rve_seconds", "dem_steps")}
+        assert not any(k.startswith("couple_stress") for k in f["steps/00002"])
+        assert f["curve/work/rve_seconds"].attrs["unit"] == "s"
+    # step 0: the trial of the starting state; then one trial a Newton iteration
+    assert work["rve_calls"][0] == 16
+    assert list(work["rve_calls"][1:]) == [16 * i for i in full["iterations"]]
+    assert work["rve_calls"].sum() == full["work"]["rve_calls"] == 16 * full["trials"]
+    assert work["dem_steps"].sum() == full["work"]["dem_steps"]
+    assert np.all(work["dem_steps"][1:] > 0) and np.all(work["rve_seconds"] > 0.0)
+
+
 def test_the_small_triaxial_restarts_bit_for_bit_and_writes_its_views(triaxial):
     base, full, again = triaxial
     assert np.array_equal(full["u"], again["u"])

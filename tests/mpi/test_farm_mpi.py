@@ -180,7 +180,7 @@ def test_a_small_3d_triaxial_on_two_ranks_equals_one_rank_bit_for_bit(tmp_path_f
     """examples/triaxial_3d.toml at small size (1 x 2 x 1 hex20, 60-sphere RVEs, two
     steps; tests/hmm/test_triaxial_3d.py) farmed on two ranks: displacements,
     stresses and the gathered measures (the contact fabric, void ratio) equal a
-    serial farm's bit for bit."""
+    serial farm's bit for bit, and so do the RVE calls and DEM steps it counts."""
     import h5py
 
     from hmm.problem_build import build_loads
@@ -205,7 +205,9 @@ def test_a_small_3d_triaxial_on_two_ranks_equals_one_rank_bit_for_bit(tmp_path_f
                     "sigma": np.array_equal(full["sigma"], ser.sigma),
                     "fabric": np.array_equal(last["gauss/fabric"][()], m["fabric"]),
                     "void": np.array_equal(last["void_ratio"][()], m["void_ratio"].reshape(
-                        macro.n_elems, macro.n_qp).mean(axis=1))}
+                        macro.n_elems, macro.n_qp).mean(axis=1)),
+                    "work": (full["work"]["rve_calls"], full["work"]["dem_steps"])
+                    == (farm.work[0], farm.work[2])}
         _all_ranks_agree(all(same.values()), f"two ranks against one: {same}")
     else:
         assert full is None

@@ -24,11 +24,16 @@ finite element quantities of a Newton iteration. Its ``kinematics`` is a choice:
 
 Gauss points are numbered ``e * n_qp + q`` (element ``e``, quadrature point ``q``),
 the order of a farm; they are material points, carried by the motion. 2D is plane
-strain. Weak forms follow scikit-fem: decorated pure functions, with Gauss-point data
-reaching them by keyword (``w.sigma``, ``w.C``).
+strain. Linear forms follow scikit-fem: decorated pure functions, with Gauss-point
+data reaching them by keyword (``w.sigma``, ``w.J``). The Newton matrix and the
+follower pressures' load stiffness are array products over all elements and pairs of
+local basis functions at once (:func:`_assemble`); skfem's ``BilinearForm`` would call
+a Python form per pair, 3,600 times an assembly of hex20 (``tests/hmm/test_finite.py``
+checks the two agree to round-off).
 """
 
 import numpy as np
+from scipy.sparse import coo_matrix
 from skfem import (
     Basis,
     BilinearForm,
@@ -80,11 +85,6 @@ INTEGRATION = {name: {"reduced": 3, "full": 5}
                for name in ("quad2", "quad8", "hex20", "hex27")}
 
 
-@BilinearForm
-def _stiffness(u, v, w):
-    return ddot(sym_grad(v), np.einsum("ijkl...,kl...->ij...", w.C, sym_grad(u)))
-
-
 @LinearForm
 def _internal(v, w):
     return ddot(w.sigma, sym_grad(v))
@@ -108,24 +108,10 @@ def _internal_finite(v, w):
     return ddot(w.sigma, mul(v.grad, w.Finv)) * w.J
 
 
-@BilinearForm
-def _stiffness_finite(u, v, w):
-    gu = mul(u.grad, w.Finv)
-    return ddot(mul(v.grad, w.Finv), np.einsum("ijkl...,kl...->ij...", w.A, gu)) * w.J
-
-
 @LinearForm
 def _follower_pressure(v, w):
     # n da = J F^-T N dA (Nanson): w.m = J F^-T N
     return -w.p * dot(w.m, v)
-
-
-@BilinearForm
-def _follower_pressure_stiffness(u, v, w):
-    # d(n da) = (tr g I - g^T) n da, g = grad_x du
-    g = mul(u.grad, w.Finv)
-    gtm = np.einsum("ji...,j...->i...", g, w.m)
-    return -w.p * (trace(g) * dot(w.m, v) - dot(gtm, v))
 
 
 @BilinearForm
@@ -156,6 +142,33 @@ def _inverse_and_det(f):
     """F^-1 and det F of (d, d, ...) arrays."""
     m = np.moveaxis(f, (0, 1), (-2, -1))
     return np.moveaxis(np.linalg.inv(m), (-2, -1), (0, 1)), np.linalg.det(m)
+
+
+def _local_fields(basis):
+    """The values (n, d, ne, nq) and gradients (n, d, d, ne, nq) of the ``n`` local
+    basis functions of a vector basis at its quadrature points, kept on the basis."""
+    got = getattr(basis, "_hmm_local", None)
+    if got is None:
+        got = (np.array([np.asarray(f[0]) for f in basis.basis]),
+               np.array([np.asarray(f[0].grad) for f in basis.basis]))
+        basis._hmm_local = got
+    return got
+
+
+def _assemble(basis, local):
+    """The sparse matrix (rows: test functions, columns: trial ones, as skfem's
+    ``asm``) of element matrices ``local`` (ne, n, n), ``local[e, i, j]`` for the test
+    function ``i`` and the trial function ``j`` of element ``e``.
+
+    The bilinear forms of the Newton matrix are written as array products over all
+    elements and basis pairs at once (:meth:`Macro.stiffness`,
+    :meth:`Macro.pressure_stiffness`): skfem's ``BilinearForm`` calls its Python form
+    once per pair of local functions, 3,600 times an assembly for hex20.
+    """
+    dofs = basis.element_dofs  # (n, ne)
+    rows = np.broadcast_to(dofs.T[:, :, None], local.shape).ravel()
+    cols = np.broadcast_to(dofs.T[:, None, :], local.shape).ravel()
+    return coo_matrix((local.ravel(), (rows, cols)), shape=(basis.N, basis.N)).tocsr()
 
 
 def structured_mesh(element, size, cells):
@@ -300,13 +313,18 @@ class Macro:
         the updated-Lagrangian Newton matrix on the configuration of ``u``, material
         and geometric parts, which needs the stresses ``sigma`` too (finite).
         Sparse."""
+        _, grads = _local_fields(self.basis)
         if u is None or not self.finite:
-            return asm(_stiffness, self.basis, C=self.from_gp(tangent))
-        if sigma is None:
-            raise ValueError("the finite-strain stiffness needs the stresses")
-        finv, jac = self._current(u)
-        a = spatial_tangent(sigma, tangent)
-        return asm(_stiffness_finite, self.basis, A=self.from_gp(a), Finv=finv, J=jac)
+            g = 0.5 * (grads + np.swapaxes(grads, 1, 2))  # sym grad
+            c, dx = self.from_gp(tangent), self.basis.dx
+        else:
+            if sigma is None:
+                raise ValueError("the finite-strain stiffness needs the stresses")
+            finv, jac = self._current(u)
+            g = np.einsum("nac...,cb...->nab...", grads, finv)  # grad_x = grad_X F^-1
+            c, dx = self.from_gp(spatial_tangent(sigma, tangent)), self.basis.dx * jac
+        cg = np.einsum("abkl...,jkl...->jab...", c, g)
+        return _assemble(self.basis, np.einsum("iabeq,jabeq,eq->eij", g, cg, dx))
 
     def _facets(self, boundary):
         """The facet basis of a boundary on the initial mesh, built once: the forms
@@ -341,7 +359,15 @@ class Macro:
         the load stiffness of a follower pressure."""
         fb = self._facets(boundary)
         finv, m = self._facet_current(fb, u)
-        return asm(_follower_pressure_stiffness, fb, p=float(pressure), m=m, Finv=finv)
+        # d(n da) = (tr g I - g^T) n da, g = grad_x du: the form -p (tr g m - g^T m).v
+        values, grads = _local_fields(fb)
+        g = np.einsum("nac...,cb...->nab...", grads, finv)
+        mv = np.einsum("a...,ia...->i...", m, values)
+        gtm = np.einsum("jba...,b...->ja...", g, m)
+        dx = fb.dx
+        local = np.einsum("jaaeq,ieq,eq->eij", g, mv, dx) \
+            - np.einsum("jaeq,iaeq,eq->eij", gtm, values, dx)
+        return _assemble(fb, -float(pressure) * local)
 
     def traction_force(self, boundary, traction, u=None):
         """Nodal forces [N] of a traction vector (d,) [Pa] on a boundary: per unit

@@ -7,7 +7,8 @@ import math
 
 import numpy as np
 import pytest
-from skfem import Basis
+from skfem import Basis, BilinearForm, FacetBasis, asm
+from skfem.helpers import ddot, dot, mul, sym_grad, trace
 
 import dem
 from dem import rve as rvemod
@@ -16,11 +17,11 @@ from dem.observers import elastic_energy
 from hmm.coupling import Solver, SolverError, SolverSettings, Supports
 from hmm.farm import SerialFarm
 from hmm.loads import CurrentBodyForce, CurrentTraction, FollowerPressure
-from hmm.macro import Macro, structured_mesh
+from hmm.macro import Macro, _inverse_and_det, structured_mesh
 from hmm.micro import DEMMicroModel, Hypoelastic, LinearElastic, NeoHookean
 from hmm.problem import validate_problem
 from hmm.problem_build import clone_rve
-from hmm.tensors import log_strain
+from hmm.tensors import log_strain, spatial_tangent
 
 E, NU = 1e6, 0.3
 
@@ -89,6 +90,56 @@ def test_newton_matrix_is_the_derivative_of_the_residual(element):
             e[j] = h
             fd[:, j] = (force(u + e) - force(u - e)) / (2.0 * h)
         assert np.abs(k - fd).max() <= 1e-8 * np.abs(k).max()
+
+
+@BilinearForm
+def _reference_stiffness(u, v, w):
+    return ddot(sym_grad(v), np.einsum("ijkl...,kl...->ij...", w.C, sym_grad(u)))
+
+
+@BilinearForm
+def _reference_stiffness_finite(u, v, w):
+    gu = mul(u.grad, w.Finv)
+    return ddot(mul(v.grad, w.Finv), np.einsum("ijkl...,kl...->ij...", w.A, gu)) * w.J
+
+
+@BilinearForm
+def _reference_pressure_stiffness(u, v, w):
+    g = mul(u.grad, w.Finv)  # d(n da) = (tr g I - g^T) n da, g = grad_x du
+    return -w.p * (trace(g) * dot(w.m, v) - dot(np.einsum("ji...,j...->i...", g, w.m), v))
+
+
+@pytest.mark.parametrize("element, cells", [("quad8", [2, 2]), ("hex20", [1, 2, 1]),
+                                            ("tet10", [1, 1, 1]), ("hex1", [2, 1, 1])])
+def test_the_newton_matrix_equals_skfem_bilinear_forms(element, cells):
+    """The Newton matrix and the follower pressure's load stiffness, assembled as array
+    products over all elements at once, equal skfem's BilinearForm assembly of the
+    same weak forms to round-off, for a random tangent (no symmetries), stresses and
+    deformation, small and finite."""
+    rng = np.random.default_rng(7)
+    for kinematics in ("small", "finite"):
+        macro = Macro(structured_mesh(element, [1.0] * len(cells), cells), element,
+                      kinematics)
+        d = macro.dim
+        c = rng.standard_normal((macro.n_gp, d, d, d, d))
+        sig = rng.standard_normal((macro.n_gp, d, d))
+        sig += np.swapaxes(sig, 1, 2)
+        u = 0.05 * rng.standard_normal(macro.n_dofs)
+        k = macro.stiffness(c, u, sig)
+        if kinematics == "small":
+            ref = asm(_reference_stiffness, macro.basis, C=macro.from_gp(c))
+        else:
+            finv, jac = _inverse_and_det(macro.basis.interpolate(u).grad
+                                         + np.eye(d)[:, :, None, None])
+            ref = asm(_reference_stiffness_finite, macro.basis,
+                      A=macro.from_gp(spatial_tangent(sig, c)), Finv=finv, J=jac)
+            fb = FacetBasis(macro.mesh, macro.elem, facets=macro.mesh.boundaries["top"],
+                            intorder=macro.order)
+            finv, m = macro._facet_current(fb, u)
+            p_ref = asm(_reference_pressure_stiffness, fb, p=1e5, m=m, Finv=finv)
+            p_k = macro.pressure_stiffness("top", 1e5, u)
+            assert abs(p_k - p_ref).max() <= 1e-14 * abs(p_ref).max()
+        assert abs(k - ref).max() <= 1e-14 * abs(ref).max()
 
 
 def test_small_kinematics_ignores_the_configuration():

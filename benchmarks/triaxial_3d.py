@@ -217,7 +217,7 @@ def main():
             "goal_core_hours": GOAL_CORE_HOURS,
             "ratio_reference_to_projected": ref["core_hours"] / projected,
             "projected_wall_hours_on_ranks": wall_on,
-            "stdout": stdout.splitlines()[-12:]}
+            "stdout": stdout.split("output:")[0].splitlines()}  # not the file paths
     C.write_json(OUT, data)
     print(f"{r['gauss_points']} Gauss points, {r['load_steps']} steps on {ranks} ranks: "
           f"{wall:.0f} s ({solve:.0f} s solving), peak {peak_mb:.0f} MB a rank")

@@ -132,3 +132,22 @@ def test_the_small_triaxial_restarts_bit_for_bit_and_writes_its_views(triaxial):
     xdmf = (base / "full" / "fields.xdmf").read_text()
     assert 'Name="anisotropy"' in xdmf and 'Name="fabric_yy"' in xdmf
     assert (base / "full" / "deviatoric_strain.png").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize("element", ["hex27", "tet10"])
+def test_the_other_quadratic_elements_run_dem_rves_and_restart(element, tmp_path):
+    """One cube of hex27 (27 Gauss points) or of tet10 (4 a tetrahedron) under the
+    example's loads, with 60-sphere RVEs: the platen's load grows past the cell
+    pressure, and a run stopped after step 1 and restarted ends bit for bit where the
+    whole run ends."""
+    prob = small_triaxial()
+    prob["mesh"].update(element=element, cells=[1, 1, 1], size=[0.05, 0.05, 0.05],
+                        integration=None)
+    prob["output"]["checkpoint_every"] = 1
+    full = run_problem(prob, tmp_path / "full", progress=False)
+    run_problem(prob, tmp_path / "cut", progress=False, stop_after=1)
+    again = run_problem(prob, tmp_path / "cut", progress=False, restart=True)
+    assert full["load_factor"] == pytest.approx(1.0)
+    assert -full["reactions"]["top"][1] / 0.05 ** 2 > 1.3e5
+    assert np.array_equal(full["u"], again["u"])
+    assert np.array_equal(full["sigma"], again["sigma"])

@@ -20,7 +20,7 @@ from .checkpoint import save as save_checkpoint
 from .coupling import Solver, SolverError, SolverSettings
 from .porous import BiotSolver
 from .farm import mpi_world
-from .signals import Interrupted
+from .signals import Interrupted, held
 from .io import Output
 from .problem import validate_problem
 from .problem_build import build_farm, build_loads, build_macro, build_porous
@@ -238,8 +238,10 @@ def _solve(problem, macro, farm, supports, loading, out, progress, say, t0,
                      "%d cuts so far, %.1f s", k, n, solver.t, its, solver.cuts,
                      time.perf_counter() - t1)
             if (every_ck and k % every_ck == 0) or k == last < n:
-                save_checkpoint(out.dir / "checkpoint.h5", problem, k, solver, out.curve,
-                                farm.export())
+                state = farm.export()
+                with held():  # HDF5 must not be left mid-write (hmm.signals.held)
+                    save_checkpoint(out.dir / "checkpoint.h5", problem, k, solver,
+                                    out.curve, state)
             if bar is not None:
                 bar.update(1)
     finally:

@@ -9,6 +9,7 @@ and the batch queue (:mod:`hmm.queue`) open a watch; the ``mpi4py`` module reach
 from :func:`hmm.farm.mpi_world`, the only place it is imported.
 """
 
+import contextlib
 import logging
 import signal
 import threading
@@ -16,7 +17,7 @@ import time
 
 log = logging.getLogger(__name__)
 
-__all__ = ["GRACE_S", "Interrupted", "SignalWatch", "interrupt", "log_pids",
+__all__ = ["GRACE_S", "Interrupted", "SignalWatch", "held", "interrupt", "log_pids",
            "raise_pending", "reported"]
 
 _POLL_S = 1e-3  # sleep between two polls of a wait
@@ -46,13 +47,37 @@ class Interrupted(BaseException):
 _raised = []  # signals interrupt() raised that the command has not reported yet
 
 
+_holding = [0]  # depth of the held() blocks running
+
+
 def interrupt(signum, frame=None):
     """The handler of SIGINT and SIGTERM in a serial ``hmm`` command: raise
-    :class:`Interrupted` at once, and again at the next :func:`raise_pending` should
-    Python drop it (an exception raised inside a weakref callback or a ``__del__``,
-    of which h5py has many, is only printed)."""
+    :class:`Interrupted` at once (at the end of a :func:`held` block, if one runs),
+    and again at the next :func:`raise_pending` should Python drop it (an exception
+    raised inside a weakref callback or a ``__del__``, of which h5py has many, is only
+    printed)."""
     _raised.append(signum)
+    if _holding[0]:
+        return
     raise Interrupted(signum)
+
+
+@contextlib.contextmanager
+def held():
+    """Hold a serial command's SIGINT and SIGTERM while the block runs, and raise
+    :class:`Interrupted` when it ends if one arrived. For HDF5 writes: the library
+    calls back into Python (the file objects of :mod:`dem.io.files`), and an exception
+    raised inside such a call leaves its state broken, so that the file can no longer
+    be flushed or closed ("Can't decrement id ref count"). A signal that arrived
+    before the block is not raised again here."""
+    before = len(_raised)
+    _holding[0] += 1
+    try:
+        yield
+    finally:
+        _holding[0] -= 1
+    if not _holding[0] and len(_raised) > before:
+        raise Interrupted(_raised[-1])
 
 
 def raise_pending():

@@ -37,7 +37,7 @@ def agree(prog, argv, tmp, stop=None):
     else:
         assert "valid;" in out, out
     with mock.patch(stop, _stop) if stop else contextlib.nullcontext(), \
-            mock.patch("hmm.io.Output._plots"):
+            mock.patch("hmm.io.write_figures"):
         code, _, err_real = run_cli(prog, [*argv, "--no-progress"], tmp)
     assert code in (0, 2), err_real
     assert (code == 0) == (code_dry == 0), \

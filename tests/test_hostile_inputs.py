@@ -678,7 +678,7 @@ def test_crafted_checkpoints_end_in_a_run_or_one_line(stopped_run):
             shutil.copytree(stopped_run, tmp, dirs_exist_ok=True)
             apply_edits(tmp / "out" / "checkpoint.h5", edits)
             fields = (tmp / "out" / "fields.h5").read_bytes()
-            with bounded_memory(), mock.patch("hmm.io.Output._plots"):
+            with bounded_memory(), mock.patch("hmm.io.write_figures"):
                 code, _, err = run_cli("hmm", ["run", "problem.toml", "-o", "out",
                                                "--restart", "--stop-after", "1",
                                                "--no-progress"], tmp)

@@ -97,7 +97,7 @@ def _distorted_box(element, cells, seed=3):
     """A 5 x 10 x 5 cm box of hexahedra (corners in VTK order) or tetrahedra, its
     interior vertices moved by up to a fifth of a cell."""
     import hmm
-    from hmm.io import _HEX_ORDER
+    from hmm.run_figures import HEX_ORDER
 
     size = np.array([0.05, 0.1, 0.05])
     mesh = hmm.structured_mesh(element, list(size), cells)
@@ -105,7 +105,7 @@ def _distorted_box(element, cells, seed=3):
     inner = np.all((p > 1e-12) & (p < size[:, None] - 1e-12), axis=0)
     p[:, inner] += np.random.default_rng(seed).uniform(-0.2, 0.2, (3, inner.sum())) * \
         (size / cells)[:, None]
-    return p.T, (mesh.t[_HEX_ORDER].T if element == "hex1" else mesh.t.T), size
+    return p.T, (mesh.t[HEX_ORDER].T if element == "hex1" else mesh.t.T), size
 
 
 @pytest.mark.parametrize("element", ["hex1", "tet1"])

@@ -178,7 +178,7 @@ def test_restart_continues_a_stopped_run_bit_for_bit(tmp_path):
 
 
 def test_the_field_plot_shows_void_ratio_only_where_every_point_ran_its_rve():
-    from hmm.io import _second_panel
+    from hmm.run_figures import _second_panel
 
     void = np.array([0.19, 0.25])
     values, title, _, _ = _second_panel(np.array([1.0, 1.0]), void)

@@ -55,3 +55,26 @@ def test_ctrl_c_ends_a_serial_batch_at_once(tmp_path):
     assert errors == ["hmm batch: error: interrupted by SIGINT; rerun the same command "
                       "to resume"], lines
     assert 1 <= len(read_batch(tmp_path / "out" / "batch.h5")) < 4
+
+
+def test_a_signal_waits_for_the_end_of_a_held_block():
+    """hmm.signals.held: a signal inside the block (an HDF5 write) is raised when the
+    block ends, not inside it; one that arrived before the block is not raised again
+    at its end."""
+    from hmm import signals
+
+    done = []
+    with pytest.raises(signals.Interrupted, match="SIGTERM"):
+        with signals.held():
+            signals.interrupt(signal.SIGTERM)  # noted, not raised
+            with signals.held():  # nested: the outer block raises
+                done.append("inner")
+            done.append("outer")
+    assert done == ["inner", "outer"]
+    signals.reported()
+    with pytest.raises(signals.Interrupted):
+        signals.interrupt(signal.SIGINT)
+    with signals.held():
+        done.append("after")
+    assert done[-1] == "after"
+    signals.reported()

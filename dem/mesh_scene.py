@@ -230,6 +230,21 @@ class MeshScene:
             torque[w] = np.cross(st.mpoint[rows] - self._mcenter[w], f).sum(axis=0)
         return force, torque
 
+    def mesh_contacts(self):
+        """The touching sphere-mesh contacts of the last force evaluation, one row
+        each: ``sphere`` (n,), ``wall`` (n,) its index in ``mesh_walls``, ``mat_id``
+        (n,) the wall's material, ``point`` (n, 3) [m] the middle of the overlap,
+        ``force`` (n, 3) [N] on the sphere, ``hist`` (n, h) the law's history rows
+        (copies; empty without mesh walls)."""
+        self.prime()
+        st = self.mesh_state
+        t = st.mtouch == 1
+        wall = self._face_wall[st.mrows[t, 1]] if self.has_mesh else _i8(0)
+        return {"sphere": st.mrows[t, 0].copy(), "wall": wall,
+                "mat_id": self._mmat[wall] if self.has_mesh else _i8(0),
+                "point": st.mpoint[t].copy(), "force": st.mforce[t].copy(),
+                "hist": st.mhist[t].copy()}
+
     # ------------------------------------------------------------------ state
     def _mesh_state_arrays(self):
         """The ``mesh.*`` arrays of :meth:`state_arrays` (none without mesh walls)."""

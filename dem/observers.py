@@ -100,7 +100,8 @@ def contact_summary(sim):
     (d,) the vector from the centre of i to the centre of j, periodic image included
     (sphere-sphere) or to the contact point times two (walls), ``force`` (d,) on j [N],
     ``arm_i``/``arm_j`` (d,) from each centre to the contact point (``arm_j`` zero for
-    walls), ``kn``/``kt`` the law's tangent stiffness [N/m], ``is_wall`` bool, and
+    walls), ``kn``/``kt`` the law's tangent stiffness [N/m], ``is_wall`` bool (triangle-
+    mesh walls too: their ``j`` is ``-1 - `` the wall's index in ``mesh_walls``), and
     ``moment`` (r,) the rolling and twisting moment on j [N m] (2D: about z; i gets the
     opposite; zero without rolling resistance, :mod:`dem.contact.rolling`).
     """
@@ -157,7 +158,41 @@ def contact_summary(sim):
         out["is_wall"].append(np.ones(i.size, bool))
         # the wall rows keep the moment on the body: the wall gets the opposite
         out["moment"].append(_moments(sim, sim.wall_state.whist[t], -1.0))
+    if getattr(sim, "has_mesh", False):
+        _mesh_summary(sim, out)
     return _concatenate(out, d)
+
+
+def _mesh_geometry(sim, m):
+    """Centre-to-contact vectors, overlaps and radii of mesh contacts ``m``
+    (:meth:`dem.Simulation.mesh_contacts`): the contact point is the middle of the
+    overlap, on the line from the centre, at ``r - ov / 2``."""
+    b = sim.bodies
+    i = m["sphere"]
+    arm = m["point"] - b.pos[i]
+    ri = b.radius[i]
+    return arm, 2.0 * (ri - np.linalg.norm(arm, axis=1)), ri
+
+
+def _mesh_summary(sim, out):
+    """The sphere-mesh rows of :func:`contact_summary` (``j = -1 - wall index``)."""
+    b = sim.bodies
+    m = sim.mesh_contacts()
+    if not m["sphere"].size:
+        return
+    i = m["sphere"]
+    arm, ov, ri = _mesh_geometry(sim, m)
+    n = arm / np.linalg.norm(arm, axis=1)[:, None]
+    kn, kt = _stiffness(sim, "pw", ov, ri, b.mat_id[i], m["mat_id"])
+    out["i"].append(i), out["j"].append(-1 - m["wall"]), out["normal"].append(n)
+    out["overlap"].append(ov)
+    out["x1"].append(b.pos[i] + ri[:, None] * n)
+    out["x2"].append(b.pos[i] + (ri - ov)[:, None] * n)
+    out["branch"].append(2.0 * arm), out["force"].append(-m["force"])
+    out["arm_i"].append(arm), out["arm_j"].append(np.zeros_like(arm))
+    out["kn"].append(kn), out["kt"].append(kt)
+    out["is_wall"].append(np.ones(i.size, bool))
+    out["moment"].append(_moments(sim, m["hist"], -1.0))
 
 
 def _moments(sim, hist, sign):
@@ -365,7 +400,8 @@ def angular_momentum(bodies, origin=None):
 
 def elastic_energy(sim):
     """Elastic energy [J] stored in the contacts (normal, tangential, rolling and
-    twisting springs; the rolling ones at the current normal stiffness)."""
+    twisting springs; the rolling ones at the current normal stiffness), triangle-mesh
+    walls' included."""
     sim.prime()
     b, nl = sim.bodies, sim.neighbors
     e = 0.0
@@ -410,7 +446,24 @@ def elastic_energy(sim):
             kn = _stiffness(sim, bucket, ov[t], r_eff[t], ma, mb)[0]
             e += rolling_energy(tab[ma, mb, tab.shape[2] - ROLLING_PARAMS:], hist[t], kn,
                                 r_eff[t])
+    if getattr(sim, "has_mesh", False):
+        e += _mesh_energy(sim)
     return float(e)
+
+
+def _mesh_energy(sim):
+    """Elastic energy [J] of the sphere-mesh contacts (the ``"pw"`` law, as a plane)."""
+    m = sim.mesh_contacts()
+    if not m["sphere"].size:
+        return 0.0
+    _, ov, ri = _mesh_geometry(sim, m)
+    ma, mb, tab = sim.bodies.mat_id[m["sphere"]], m["mat_id"], sim.parameter_table("pw")
+    e = contact_energy(sim.model.kind("pw").code, ov, ri, tab, ma, mb, m["hist"],
+                       np.arange(ov.size))
+    if sim.model.rolling:
+        kn = _stiffness(sim, "pw", ov, ri, ma, mb)[0]
+        e += rolling_energy(tab[ma, mb, tab.shape[2] - ROLLING_PARAMS:], m["hist"], kn, ri)
+    return e
 
 
 class EnergyTracker(_Series):

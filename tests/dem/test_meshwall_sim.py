@@ -80,6 +80,29 @@ def test_history_survives_the_seam_between_two_triangles():
     np.testing.assert_allclose(mesh[:, 9:15], plane[:, 9:15], rtol=0.0, atol=1e-9 * weight)
 
 
+def test_contact_summary_and_energy_count_a_mesh_contact_as_a_plane_s():
+    """The sphere sliding with friction of the seam run, on the mesh and on a Plane
+    (800 steps): ``contact_summary`` gives the one contact with the same overlap,
+    normal, points, force on the wall, stiffnesses, arms and moment to round-off (its
+    ``j`` is -1: the first mesh wall), and ``elastic_energy`` the same energy, the
+    tangential spring's included."""
+    from dem.observers import contact_summary, elastic_energy
+
+    z0 = R - MASS * 9.81 / 1e5
+    _, _, sim, psim = _pair_runs(_law("linear"), [-0.004, 0.0, z0], [0.5, 0.0, 0.0],
+                                 [0.0, 0.0, 0.0], 800, 1e-5)
+    cm, cp = contact_summary(sim), contact_summary(psim)
+    assert cm["j"].tolist() == [-1] and cm["is_wall"].tolist() == [True]
+    for k in ("i", "overlap", "normal", "x1", "x2", "branch", "force", "arm_i", "arm_j",
+              "kn", "kt", "moment"):
+        scale = max(np.abs(cp[k]).max(), 1e-300)
+        np.testing.assert_allclose(cm[k], cp[k], rtol=0.0, atol=1e-9 * scale, err_msg=k)
+    assert np.abs(cp["force"][0, :2]).max() > 0.05 * MASS * 9.81  # friction acts
+    normal_only = 0.5 * 1e5 * cp["overlap"][0] ** 2
+    assert elastic_energy(psim) > 1.001 * normal_only  # the tangential spring counts
+    assert elastic_energy(sim) == pytest.approx(elastic_energy(psim), rel=1e-9)
+
+
 def test_sphere_in_a_valley_rests_on_two_analytic_normal_forces():
     """A V-shaped valley (two faces each side, 30 degrees up): a frictionless sphere
     settles on two contacts, each pushing mg / (2 cos 30) along its face's normal."""

@@ -42,6 +42,8 @@ def _all_nodes(macro, path):
             comp[macro.basis.facet_dofs[c]] = c
         if macro.basis.interior_dofs.size:
             comp[macro.basis.interior_dofs[c]] = c
+        if macro.dim == 3 and macro.basis.edge_dofs.size:
+            comp[macro.basis.edge_dofs[c]] = c
     dofs = np.arange(macro.n_dofs)
 
     def values(t):
@@ -418,6 +420,37 @@ def test_one_element_at_finite_strain_equals_a_standalone_rve():
     for k in range(3):
         solver.advance(1.0 / 3.0)
         exact = path((k + 1) / 3.0) @ np.linalg.inv(path(k / 3.0)) - np.eye(2)
+        assert np.abs(solver.increment - exact).max() < 1e-14
+        for g in range(macro.n_gp):
+            assert np.array_equal(solver.sigma[g], alone[g].apply_strain(
+                solver.increment[g]))
+    assert abs(solver.sigma[0, 0, 1]) > 1e3  # the path sheared the packing
+
+
+def test_one_hex20_element_at_finite_strain_equals_standalone_3d_rves():
+    """The 3D case of the test above: one hex20 element (8 Gauss points) of 40-sphere
+    periodic RVEs on a homogeneous path of stretch, shear and a turn about (1, 1, 1):
+    every point gets F_n+1 F_n^-1 - I to round-off, and its stress is bit for bit
+    that of a standalone RVE given the same increments."""
+    law = dem.LinearSpring(kn=1e5, kt=5e4, mu=0.5)
+    packing = rvemod.generate(3, 40, (0.8e-3, 1.2e-3), law, p0=1e5, friction=0.0, seed=2)
+    macro = Macro(structured_mesh("hex20", [1.0, 1.0, 1.0], [1, 1, 1]), "hex20", "finite")
+    farm = SerialFarm([DEMMicroModel(clone_rve(packing)) for _ in range(macro.n_gp)])
+    axis = np.ones(3) / math.sqrt(3.0)
+    k_x = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]],
+                    [-axis[1], axis[0], 0.0]])
+
+    def path(t):  # Rodrigues' turn by 0.2 t after a stretch and shear
+        turn = np.eye(3) + math.sin(0.2 * t) * k_x + (1.0 - math.cos(0.2 * t)) * k_x @ k_x
+        return turn @ np.array([[1.0 - 2e-3 * t, 2e-3 * t, 0.0],
+                                [0.0, 1.0 + 1e-3 * t, -1e-3 * t],
+                                [0.0, 0.0, 1.0 + 5e-4 * t]])
+
+    solver = Solver(macro, farm, _all_nodes(macro, path))
+    alone = [clone_rve(packing) for _ in range(macro.n_gp)]
+    for k in range(2):
+        solver.advance(0.5)
+        exact = path((k + 1) / 2.0) @ np.linalg.inv(path(k / 2.0)) - np.eye(3)
         assert np.abs(solver.increment - exact).max() < 1e-14
         for g in range(macro.n_gp):
             assert np.array_equal(solver.sigma[g], alone[g].apply_strain(

@@ -102,7 +102,8 @@ class Simulation(ShapeScene, MeshScene):
         self.bodies = bodies
         self.model = model
         self.dim = bodies.dim
-        model.check(bodies)
+        walls = list(walls)
+        model.check(bodies, [w.mat_id for w in walls if hasattr(w, "mat_id")])
         if not 0.0 <= damping < 1.0:
             raise ValueError(f"damping must be in [0, 1), got {damping}")
         #: the largest step accepted: STABLE_FACTOR x a close packing's limit

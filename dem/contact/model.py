@@ -82,15 +82,18 @@ class ContactModel:
                     t[a, b] = law.full_row(self.rolling)
         return t
 
-    def check(self, bodies):
-        """Fail at set-up, naming every material pair present that has no law."""
+    def check(self, bodies, mesh_materials=()):
+        """Fail at set-up, naming every material pair present that has no law (the
+        walls' materials: the planes' and ``mesh_materials``, those of the triangle-mesh
+        walls)."""
         from ..shapes import Shape
 
         if self.rolling and bodies.has_shapes:
             raise ValueError("rolling resistance acts between spheres and disks (and "
                              "walls), not on level-set shapes")
         sph = np.unique(bodies.mat_id[bodies.kind != Shape.PLANE])
-        wal = np.unique(bodies.mat_id[bodies.kind == Shape.PLANE])
+        wal = np.unique(np.concatenate([bodies.mat_id[bodies.kind == Shape.PLANE],
+                                        np.asarray(mesh_materials, np.int64)]))
         missing = [("particle-particle", a, b) for a in sph for b in sph
                    if a <= b and self.law_for("pp", a, b) is None]
         missing += [("particle-wall", a, b) for a in sph for b in wal

@@ -215,6 +215,16 @@ def test_missing_wall_law_is_named_at_setup():
         dem.Simulation(bodies, model)
 
 
+def test_missing_mesh_wall_law_is_named_at_setup():
+    """A triangle-mesh wall's material counts as a wall's: without a particle-wall law
+    for it the scene is refused before it runs (its contacts would have NaN forces)."""
+    floor = dem.MeshWall([[-1.0, -1.0, -R], [1.0, -1.0, -R], [1.0, 1.0, -R]], [[0, 1, 2]],
+                         mat_id=4)
+    model = dem.ContactModel(LAW, wall_law={(0, 2): LAW})
+    with pytest.raises(ValueError, match=r"particle-wall materials \(0, 4\)"):
+        dem.Simulation(pair(), model, walls=[floor])
+
+
 def test_mixed_law_kinds_in_one_bucket_are_refused():
     hertz = dem.HertzMindlin(young=1e8, poisson=0.3, restitution=0.5, mu=0.3)
     with pytest.raises(ValueError, match="same law kind"):

@@ -185,9 +185,6 @@ class Output:
         self.f, self._kept, self._closed, self._out = None, None, False, None
         self._config, self._units = config, field_units(macro.dim)
         self._work = np.zeros(3)  # the farm's work (measures["work"]) at the last write
-        #: the micro law has rolling resistance: the frames hold the couple stress
-        self.rolling = isinstance(config, dict) and \
-            float(config.get("micro", {}).get("mu_roll", 0.0)) > 0.0
         self._old_version = None
         if restart is not None:
             self._reopen(*restart)
@@ -417,8 +414,8 @@ class Output:
         for a, b in _components(d):
             g.create_dataset(f"fabric_{_AXES[a]}{_AXES[b]}", data=emean(fabric[:, a, b]))
         g.create_dataset("gauss/fabric", data=fabric)
-        if self.rolling:
-            couple = np.asarray(measures["couple_stress"], float)
+        couple = np.asarray(measures["couple_stress"], float)
+        if np.isfinite(couple).any():  # a law with rolling resistance (else NaN)
             moments = "z" if d == 2 else _AXES
             for a, m in enumerate(moments):
                 for b in range(d):

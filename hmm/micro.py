@@ -433,7 +433,7 @@ class DEMMicroModel(MicroModel):
         couple = r.get("couple_stress")
         return {"void_ratio": r["void_ratio"], "coordination": r["coordination"],
                 "ran_dem": 1.0, "fabric": fabric, "anisotropy": fabric_anisotropy(fabric),
-                "couple_stress": np.zeros(measure_shapes(d)["couple_stress"])
+                "couple_stress": np.full(measure_shapes(d)["couple_stress"], math.nan)
                 if couple is None else couple}
 
 

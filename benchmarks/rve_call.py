@@ -41,27 +41,37 @@ def measure(dim, reps):
     r = rve.generate(dim, n, (0.8e-3, 1.2e-3), law, p0=1e5, friction=0.0, seed=1)
     t_gen = time.perf_counter() - t0
     snap = r.snapshot()
-    deps = np.zeros((dim, dim))
-    deps[-1, -1] = -1e-4
-    times, steps = [], []
-    for _ in range(reps + 1):  # the first call is a warm-up
-        r.restore(snap)
-        s0 = r.sim.step
-        t0 = time.perf_counter()
-        r.apply_strain(deps)
-        r.tangent()
-        times.append(time.perf_counter() - t0)
-        steps.append(r.sim.step - s0)
+
+    def calls(strain, relax):
+        deps = np.zeros((dim, dim))
+        deps[-1, -1] = -strain
+        times, steps = [], []
+        for _ in range(reps + 1):  # the first call is a warm-up
+            r.restore(snap)
+            s0 = r.sim.step
+            t0 = time.perf_counter()
+            r.apply_strain(deps, relax=relax, tangent=True)
+            times.append(time.perf_counter() - t0)
+            steps.append(r.sim.step - s0)
+        return times[1:], C.median(steps[1:])
+
+    times, steps = calls(1e-4, True)
+    times_unrelaxed, steps_unrelaxed = calls(1e-3, False)
     r.restore(snap)
     n_steps = 2000
     t0 = time.perf_counter()
     r.sim.run(n_steps, progress=False)
     t_run = time.perf_counter() - t0
+    step = t_run / n_steps
     return {"dim": dim, "particles": n, "generation_time": t_gen,
-            "call_time": C.median(times[1:]), "call_times": times[1:],
-            "steps_per_call": C.median(steps[1:]),
+            "call_time": C.median(times), "call_times": times,
+            "steps_per_call": steps,
+            "outside_steps": C.median(times) - steps * step,
+            "unrelaxed_call_time": C.median(times_unrelaxed),
+            "unrelaxed_steps_per_call": steps_unrelaxed,
+            "unrelaxed_outside_steps": C.median(times_unrelaxed) - steps_unrelaxed * step,
             "particle_steps_per_s": n * n_steps / t_run,
-            "step_time": t_run / n_steps}
+            "step_time": step}
 
 
 def main():
@@ -73,8 +83,11 @@ def main():
             "loadavg": C.loadavg(), "reps": reps, "rows": rows}
     C.write_json(OUT, data)
     for r in rows:
-        print(f"{r['dim']}D, {r['particles']} particles: call {1e3 * r['call_time']:.1f} ms "
-              f"({r['steps_per_call']:.0f} steps), stepping "
+        print(f"{r['dim']}D, {r['particles']} particles: call {1e3 * r['call_time']:.2f} ms "
+              f"({r['steps_per_call']:.0f} steps, {1e3 * r['outside_steps']:.2f} ms outside "
+              f"them); unrelaxed call of 1e-3 {1e3 * r['unrelaxed_call_time']:.2f} ms "
+              f"({r['unrelaxed_steps_per_call']:.0f} steps, "
+              f"{1e3 * r['unrelaxed_outside_steps']:.2f} ms outside them); stepping "
               f"{r['particle_steps_per_s'] / 1e6:.2f} M particle-steps/s "
               f"({1e6 * r['step_time']:.0f} us per step); packing made in "
               f"{r['generation_time']:.1f} s")

@@ -19,7 +19,8 @@ Gauss point needs:
 * **relaxation** -- steps go on until the unbalanced-force ratio (mean net force
   on a particle over mean contact force) is below ``tol`` and every servo has
   reached its target; past ``max_relax_steps`` a :class:`RelaxationError` says how
-  far it got.
+  far it got. Under strain control the checks run inside the compiled step loop
+  (:meth:`dem.Simulation.relax`); a servo steps in chunks (:mod:`dem.rve_servo`).
 
 The response is the Love-Weber stress over contacts with periodic branch vectors,
 plus the kinetic part of the fluctuations (:func:`dem.observers.stress_and_tangent`,
@@ -47,6 +48,7 @@ import numpy as np
 from .boundary import PeriodicCell, cell_map, load_steps, matrix_root
 from .contact.laws import Law, law_from_spec
 from .rve_measure import measure_periodic
+from .rve_servo import drive
 from .limits import check_particle_scales
 from .observers import couple_stress
 from .rve_settings import check_settings, scale_masses, store_settings
@@ -229,7 +231,9 @@ class RVE:
             sim.shape_state.pgeom if sim.shaped else _NO_GEOMETRY,
             sim.parameter_table("pp"), self.volume,
             bool(tangent), net, degree, sig, cmat, fabric)
-        vs = solid_volume(b)
+        if getattr(self, "_solid", None) is None:  # the particles never change
+            self._solid = solid_volume(b)
+        vs = self._solid
         out = {"stress": sig.copy(), "n_contacts": int(n_c),
                "unbalanced": float(unbalanced), "fabric": fabric.copy(),
                "coordination": 2.0 * n_c / b.n,
@@ -284,16 +288,27 @@ class RVE:
         return c
 
     # ------------------------------------------------------------------ loading
-    def apply_strain(self, deps, relax=True):
+    def apply_strain(self, deps, relax=True, tangent=False):
         """Impose the displacement-gradient increment ``deps`` (d, d), then relax.
 
-        Returns the stress (d, d) [Pa] of the relaxed state. ``relax=False`` stops
-        once the increment is imposed, as YADE's FEMxDEM calls its RVEs: the stress
-        is that of the state the loading steps leave, not in equilibrium.
-        """
-        return self.load(deps, relax=relax)
+        Returns the stress (d, d) [Pa] of the relaxed state, and with ``tangent=True``
+        the pair ``(stress, contact tangent)`` of that state from one measuring pass
+        (a Gauss point's call). ``relax=False`` stops once the increment is imposed,
+        as YADE's FEMxDEM calls its RVEs: the stress is that of the state the loading
+        steps leave, not in equilibrium.
 
-    def load(self, deps=None, stress=None, mask=None, progress=None, relax=True):
+        The call is two compiled loops and a measure: the increment's steps in one
+        run, then :meth:`dem.Simulation.relax`, whose loop checks the unbalanced
+        force every :attr:`check_every` steps itself. Polytope RVEs, and calls of
+        :meth:`load` with a servo or a ``progress`` callback, step in chunks of
+        :attr:`check_every` with the checks in Python; a strain-controlled call gives
+        the same state either way, bit for bit.
+        """
+        sig = self.load(deps, relax=relax, tangent=tangent)
+        return (sig, self._last["tangent"]) if tangent else sig
+
+    def load(self, deps=None, stress=None, mask=None, progress=None, relax=True,
+             tangent=False):
         """Mixed control: strain increment on some components, stress on others.
 
         Parameters
@@ -312,6 +327,9 @@ class RVE:
         relax : bool
             Relax after the increment (default); False ends the call once the
             increment is imposed (strain control only: a servo needs relaxation).
+        tangent : bool
+            Measure the contact tangent of the final state too (kept for
+            :meth:`apply_strain`).
 
         Returns the relaxed stress (d, d) [Pa].
         """
@@ -335,7 +353,12 @@ class RVE:
                              "strain-controlled increments only")
         deps[mask] = 0.0
         self.servo_boosts = 0
-        return self._drive(deps, target, mask, progress, relax)
+        if not mask.any() and progress is None and not self.sim.shaped:
+            return self._strain_drive(deps, relax, tangent)
+        sig = self._drive(deps, target, mask, progress, relax)
+        if tangent and "tangent" not in self._last:
+            self._last = self.response(tangent=True)
+        return sig
 
     def consolidate(self, p0, friction=None, max_step_strain=1e-4, progress=None):
         """Isotropic consolidation to ``sigma = -p0 I`` [Pa] by the servo on every
@@ -364,98 +387,74 @@ class RVE:
         finally:
             self.max_step_strain = saved
 
-    def _drive(self, deps, target, mask, progress, relax=True):
-        sim, cell, d = self.sim, self.cell, self.dim
-        dt = sim.dt
+    def _load_gradient(self, deps):
+        """Steps of the increment ``deps`` and the velocity gradient over them [1/s]:
+        ``(I + dt L)^n_load = I + deps`` exactly, ``L`` from the matrix root."""
+        d, dt = self.dim, self.sim.dt
         n_load = load_steps(deps, self.max_step_strain)
-        l_load = np.zeros((d, d))
-        if n_load:  # (I + dt L)^n_load = I + deps exactly: L from the matrix root
-            l_load = (matrix_root(np.eye(d) + deps, n_load) - np.eye(d)) / dt
-        rate_max = self.max_step_strain / dt
-        tau = 4.0 * self.check_every * dt  # servo time constant
+        if not n_load:
+            return 0, np.zeros((d, d))
+        return n_load, (matrix_root(np.eye(d) + deps, n_load) - np.eye(d)) / dt
+
+    def _strain_drive(self, deps, relax, tangent):
+        """Strain control in compiled loops: the increment in one run, then
+        :meth:`dem.Simulation.relax` with this RVE's checks. The steps and the checks
+        are those of :meth:`_drive` (a check after the increment, then one every
+        :attr:`check_every` steps), and so is the state they leave, bit for bit."""
+        sim, cell = self.sim, self.cell
         start = sim.step
-        done_load = 0
-        apart = 0
-        boost, best, stalled, last_sign = 1.0, math.inf, 0, 0.0  # the stall watch
-        lgrad = np.zeros((d, d))
-        r = self.response(tangent=bool(mask.any()))
-        while True:
-            servo_ok = True
-            worst, worst_sign = 0.0, 0.0  # the largest error in units of its tolerance
-            lgrad[:] = 0.0
-            if mask.any():
-                c = r["tangent"]
-                # a shear target of zero is judged against the mean stress
-                scale = max(np.abs(np.diag(target)).max(),
-                            abs(np.trace(r["stress"])) / d, 1e-300)
-                for a, b in zip(*np.nonzero(np.triu(mask)), strict=True):
-                    err = target[a, b] - r["stress"][a, b]
-                    if a == b and target[a, b] != 0.0:
-                        allowed = self.stress_tol * abs(target[a, b])
-                    else:  # shear (or a zero target): SHEAR_TOL of the mean stress
-                        allowed = self.SHEAR_TOL * scale
-                    servo_ok = servo_ok and abs(err) <= allowed
-                    if abs(err) > worst * allowed:
-                        worst, worst_sign = abs(err) / allowed, math.copysign(1.0, err)
-                    # d sigma_ab = C_abab d eps_ab (+ C_abba d eps_ba off the diagonal)
-                    m = c[a, b, a, b] * (1.0 if a == b else 2.0)
-                    rate = boost * err / (m * tau) if m > 0.0 else math.copysign(rate_max,
-                                                                               err)
-                    lgrad[a, b] = lgrad[b, a] = max(-rate_max, min(rate_max, rate))
-                late = sim.step - start - n_load >= self.max_relax_steps // 2
-                if late and not servo_ok and r["unbalanced"] < self.tol:
-                    # at rest, off target, half the cap spent: still closing in?
-                    if boost > 1.0 and worst_sign == -last_sign:
-                        boost = max(1.0, 0.5 * boost)  # overshot
-                    if worst < 0.9 * best:
-                        best, stalled = worst, 0
-                    else:
-                        stalled += 1
-                    if stalled >= self.STALL_CHECKS:
-                        boost, best, stalled = 2.0 * boost, worst, 0
-                        self.servo_boosts += 1
-                    last_sign = worst_sign
-            n_chunk = self.check_every
-            if done_load < n_load:
-                n_chunk = min(n_chunk, n_load - done_load)
-                lgrad += l_load
-            elif servo_ok and (r["unbalanced"] < self.tol or not relax):
-                break
-            if done_load >= n_load and not mask.any() \
-                    and r["coordination"] < self.APART_COORDINATION:
-                apart += 1
-                if apart >= self.APART_CHECKS:
-                    cell.lgrad[:] = 0.0
-                    raise PackingApart(
-                        f"the packing came apart: {r['n_contacts']} contacts among "
-                        f"{sim.bodies.n} particles (coordination "
-                        f"{r['coordination']:.2f}) {apart} checks after the strain "
-                        f"increment, mean stress {-np.trace(r['stress']) / d:.4g} Pa; "
-                        f"it cannot relax (lower the strain increment)")
-            else:
-                apart = 0
-            if sim.step - start - n_load >= self.max_relax_steps:
+        n_load, l_load = self._load_gradient(deps)
+        if n_load:
+            cell.lgrad[:] = l_load
+            try:
+                sim.run(n_load, progress=False)
+            finally:
                 cell.lgrad[:] = 0.0
-                raise RelaxationError(
-                    f"RVE did not relax within {self.max_relax_steps} steps: unbalanced "
-                    f"force ratio {r['unbalanced']:.3g} (tolerance {self.tol:g}), stress "
-                    f"{np.round(r['stress'], 1).tolist()} Pa (targets "
-                    f"{target[mask].tolist()} on components "
-                    f"{[tuple(map(int, x)) for x in np.argwhere(mask)]}); lower the "
-                    f"strain increment, raise damping or max_relax_steps")
-            cell.lgrad[:] = lgrad
-            sim.run(n_chunk, progress=False)
-            self.steps_run += n_chunk
-            self.deformation = cell_map(lgrad, dt, n_chunk) @ self.deformation
-            cell.lgrad[:] = 0.0
-            if done_load < n_load:
-                done_load += n_chunk
-            r = self.response(tangent=bool(mask.any()))
-            if progress is not None:
-                progress(sim.step - start)
+            self.steps_run += n_load
+            done = 0
+            while done < n_load:  # the cell map composed as the chunked drive does
+                chunk = min(self.check_every, n_load - done)
+                self.deformation = cell_map(l_load, sim.dt, chunk) @ self.deformation
+                done += chunk
+        if relax:
+            every = self.check_every
+            rx = sim.relax(self.tol, -(-self.max_relax_steps // every) * every, every,
+                           self.APART_COORDINATION, self.APART_CHECKS, progress=False)
+            self.steps_run += rx.steps
+            if rx.status != "relaxed":
+                r = self.response(tangent=False)
+                zero = np.zeros((self.dim, self.dim))
+                if rx.status == "apart":
+                    raise self._apart(r, self.APART_CHECKS)
+                raise self._not_relaxed(r, zero, zero.astype(bool))
+        r = self.response(tangent=tangent)
         self.last_relax_steps = sim.step - start
         self._last = r
         return r["stress"]
+
+    def _apart(self, r, checks):
+        """The error of a packing that came apart (``r``: its response)."""
+        return PackingApart(
+            f"the packing came apart: {r['n_contacts']} contacts among "
+            f"{self.sim.bodies.n} particles (coordination "
+            f"{r['coordination']:.2f}) {checks} checks after the strain "
+            f"increment, mean stress {-np.trace(r['stress']) / self.dim:.4g} Pa; "
+            f"it cannot relax (lower the strain increment)")
+
+    def _not_relaxed(self, r, target, mask):
+        """The error of a relaxation that reached its step cap."""
+        return RelaxationError(
+            f"RVE did not relax within {self.max_relax_steps} steps: unbalanced "
+            f"force ratio {r['unbalanced']:.3g} (tolerance {self.tol:g}), stress "
+            f"{np.round(r['stress'], 1).tolist()} Pa (targets "
+            f"{target[mask].tolist()} on components "
+            f"{[tuple(map(int, x)) for x in np.argwhere(mask)]}); lower the "
+            f"strain increment, raise damping or max_relax_steps")
+
+    def _drive(self, deps, target, mask, progress, relax=True):
+        """Mixed control and progress reports: chunks of :attr:`check_every` steps with
+        the checks and the servo in Python (:func:`dem.rve_servo.drive`)."""
+        return drive(self, deps, target, mask, progress, relax)
 
     # ------------------------------------------------------------------ files
     def save(self, path, config=None, **attrs):

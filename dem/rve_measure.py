@@ -6,8 +6,9 @@ steps and what a Gauss point returns: the Love-Weber stress with periodic branch
 vectors plus the kinetic part, the unbalanced-force ratio, the contact-stiffness
 tangent (paper eq 29), the fabric tensor and each body's contact count. It is the
 compiled twin of :func:`dem.observers.contact_summary` followed by the sums of
-:meth:`dem.rve.RVE.response`, which it replaces in the relaxation loop; the tests hold
-the two equal.
+:meth:`dem.rve.RVE.response`; the tests hold the two equal, and its unbalanced-force
+ratio equal bit for bit to the relaxation check the step loop runs
+(:mod:`dem.contact.relaxation`).
 
 A pair of spheres touches when ``r_i + r_j - |l| > 0`` with ``l = x_j - x_i + H m`` the
 branch vector across the pair's periodic image ``m``; a pair of shapes when the loop's
@@ -21,6 +22,7 @@ import math
 
 from ._jit import kernel
 from .contact.laws import stiffness_hertz_mindlin, stiffness_linear
+from .contact.relaxation import add_pair_force, branch, force_ratio
 
 
 @kernel
@@ -78,14 +80,7 @@ def measure_periodic(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, fpa
     for k in range(pairs.shape[0]):
         i = pairs[k, 0]
         j = pairs[k, 1]
-        dist2 = 0.0
-        for a in range(d):
-            la = pos[j, a] - pos[i, a]
-            for c in range(d):
-                la += hmat[a, c] * img[k, c]
-            br[a] = la
-            dist2 += la * la
-        dist = math.sqrt(dist2)
+        dist = branch(k, d, pos, pairs, img, hmat, br)
         if shaped:
             ov = pgeom[k, 0]
             for a in range(d):
@@ -99,15 +94,10 @@ def measure_periodic(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, fpa
         n_c += 1
         degree_out[i] += 1
         degree_out[j] += 1
-        f2 = 0.0
+        fsum += add_pair_force(k, i, j, d, fpair, net_out)
         for a in range(d):
-            fa = fpair[k, a]
-            f2 += fa * fa
-            net_out[i, a] -= fa
-            net_out[j, a] += fa
             for b in range(d):
-                stress_out[a, b] -= fa * br[b]
-        fsum += math.sqrt(f2)
+                stress_out[a, b] -= fpair[k, a] * br[b]
         for a in range(d):
             for b in range(d):
                 fabric_out[a, b] += nv[a] * nv[b]
@@ -145,13 +135,4 @@ def measure_periodic(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, fpa
     for a in range(d):
         for b in range(d):
             fabric_out[a, b] /= n_c
-    net = 0.0
-    for p_ in range(n):
-        s = 0.0
-        for a in range(d):
-            s += net_out[p_, a] * net_out[p_, a]
-        net += math.sqrt(s)
-    fmean = fsum / n_c
-    if not fmean > 0.0:
-        return n_c, math.inf
-    return n_c, (net / n) / fmean
+    return n_c, force_ratio(net_out, n_c, fsum)

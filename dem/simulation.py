@@ -12,6 +12,7 @@ from .contact.loops import stepper
 from .contact.sphere_contacts import N_BLOCKS, InnerIndex, inner_index
 from .contact.model import ContactModel
 from .mesh_scene import MeshScene
+from .scene_measures import MeasureScene, never_check
 from .neighbors import NeighborList, carry_history, incidence
 from .progress import progress_bar
 from .shape_scene import ShapeScene
@@ -27,7 +28,7 @@ from .state import (
     StepSettings,
     WallState,
 )
-from .status import NOCONVERGE, NONFINITE, OK, OVERLAP, REBUILD
+from .status import CAME_APART, NOCONVERGE, NONFINITE, OK, OVERLAP, REBUILD, RELAXED
 from .timestep import DT_FACTOR, STABLE_FACTOR, stable_time_step
 
 log = logging.getLogger(__name__)
@@ -43,7 +44,7 @@ class SimulationError(RuntimeError):
     """A run stopped on a physical failure (non-finite state, excessive overlap)."""
 
 
-class Simulation(ShapeScene, MeshScene):
+class Simulation(ShapeScene, MeshScene, MeasureScene):
     """A DEM scene advanced in time.
 
     Parameters
@@ -179,6 +180,7 @@ class Simulation(ShapeScene, MeshScene):
         self._cellref = np.zeros((2, d, d))  # H^-1 at the Verlet build, at the inner list
         self._primed = False
         self._prepared = None  # the time loop last made ready (dem._jit.prepare)
+        self._check = never_check(d)  # the sphere loop's relaxation check (relax())
         self._failure_hooks = []
 
     # ------------------------------------------------------------------ set-up
@@ -276,7 +278,7 @@ class Simulation(ShapeScene, MeshScene):
                                         self._blk_start, self._inner, self._n_inner,
                                         self._pos_inner, self._wstart),
             self._params_pp, self._params_pw, self._status, self.wall_work,
-            self._mesh_loop())
+            self._mesh_loop(), self._check)
 
     def _settings(self):
         return StepSettings(self.dt, self.gravity, self.damping, self.neighbors.skin,
@@ -352,6 +354,12 @@ class Simulation(ShapeScene, MeshScene):
         n_steps = int(n_steps)
         if n_steps < 0:
             raise ValueError("n_steps must be >= 0")
+        self._steps(n_steps, progress)
+
+    def _steps(self, n_steps, progress):
+        """:meth:`run`'s loop; returns the status that ended it early (``RELAXED`` or
+        ``CAME_APART`` of a relaxation check, :meth:`relax`), else ``OK``."""
+        code = OK
         threads_before = numba.get_num_threads()
         numba.set_num_threads(self.threads)
         self.prime()
@@ -371,7 +379,7 @@ class Simulation(ShapeScene, MeshScene):
                 if self.state_objects:
                     stop = self.step + 1
                 start = self.step
-                self._advance(stop - self.step)
+                code = self._advance(stop - self.step)
                 if self.state_objects:
                     self._advance_state_objects()
                 if bar is not None:
@@ -379,10 +387,13 @@ class Simulation(ShapeScene, MeshScene):
                 for o in self.observers:
                     if o.trigger(self.step):
                         o(self)
+                if code != OK:
+                    break
         finally:
             numba.set_num_threads(threads_before)
             if bar is not None:
                 bar.close()
+        return code
 
     def _advance(self, n):
         resume = False
@@ -398,11 +409,16 @@ class Simulation(ShapeScene, MeshScene):
             self.time = self.step * self.dt
             n -= done
             code = self._status[0]
+            if self._check.every > 0:
+                self._check_moved(done)
+                if code == RELAXED or code == CAME_APART:
+                    return int(code)
             resume = code == REBUILD  # stopped mid-step, after the drift
             if resume:
                 self._rebuild()
                 continue
             self._check_status(snapshot)
+        return OK
 
     def _check_status(self, snapshot):
         code = int(self._status[0])
@@ -565,33 +581,3 @@ class Simulation(ShapeScene, MeshScene):
             self._index()
             self._restore_inner(*inner)
         self._primed = True
-
-    # ------------------------------------------------------------------ contact data
-    def contacts(self):
-        """Touching contacts now, as a dict of arrays (see
-        :func:`dem.observers.contact_summary`)."""
-        from .observers import contact_summary
-
-        self.prime()
-        return contact_summary(self)
-
-    def contact_radii(self):
-        """Radii [m] of the touching parts: ``(m, 2)`` for the pair rows and ``(mw,)``
-        for the wall rows (the bodies' radii, but a compound's part's own)."""
-        self.prime()
-        b, nl = self.bodies, self.neighbors
-        if self.shaped and self._has_parts:
-            return self._erad[self._parts], self._erad[self._wparts[:, 0]]
-        return b.radius[nl.pairs], b.radius[nl.wall_pairs[:, 0]]
-
-    def wall_forces(self):
-        """Total contact force [N] on each wall body: dict ``{body index: (d,) array}``."""
-        self.prime()
-        walls = self.bodies.ids(Shape.PLANE)
-        wp = self.neighbors.wall_pairs
-        out = {}
-        for w in walls:
-            rows = wp[:, 1] == w
-            out[int(w)] = -self.wall_state.wforce[rows].sum(axis=0)
-        return out
-

@@ -522,6 +522,23 @@ class StepSettings(NamedTuple):
     grow: float
 
 
+class RelaxCheck(NamedTuple):
+    """The relaxation check of the sphere loop (:mod:`dem.contact.relaxation`): every
+    ``every`` steps (0: never), the first ``first`` steps into the call, the loop
+    computes the unbalanced-force ratio and stops below ``tol``, or when the
+    coordination number was below ``min_coordination`` at ``apart_checks`` checks in
+    a row (0: never); ``net`` (n, d) is scratch, ``out`` (4,) the ratio, contacts and
+    low checks in a row of the last check, and the checks made."""
+
+    every: int
+    first: int
+    tol: float
+    min_coordination: float
+    apart_checks: int
+    net: np.ndarray
+    out: np.ndarray
+
+
 class NeighborArrays(NamedTuple):
     """The neighbour lists of a step loop: Verlet pairs (m, 2) int32 and their periodic
     image offsets ``img`` (m, d) int32, body-wall pairs (mw, 2) int32, and the

@@ -19,7 +19,7 @@ converge, as stored in ``benchmarks/results/stability_map.json``.
 
 from enum import IntEnum, unique
 
-__all__ = ["NOCONVERGE", "NONFINITE", "OK", "OVERLAP", "REBUILD", "Status"]
+__all__ = ["CAME_APART", "NOCONVERGE", "NONFINITE", "OK", "OVERLAP", "REBUILD", "RELAXED", "Status"]
 
 
 @unique
@@ -36,6 +36,12 @@ class Status(IntEnum):
     OVERLAP = 3
     #: a body moved past half the skin: rebuild the neighbour list, then resume
     REBUILD = 4
+    #: a relaxation check found the unbalanced-force ratio below its tolerance
+    #: (:meth:`dem.Simulation.relax`): the loop stopped early, as asked
+    RELAXED = 5
+    #: a relaxation check found too few contacts for its set number of checks in a
+    #: row: the packing came apart (a gas, which never relaxes)
+    CAME_APART = 6
 
 
 OK = int(Status.OK)
@@ -43,3 +49,5 @@ NOCONVERGE = int(Status.NOCONVERGE)
 NONFINITE = int(Status.NONFINITE)
 OVERLAP = int(Status.OVERLAP)
 REBUILD = int(Status.REBUILD)
+RELAXED = int(Status.RELAXED)
+CAME_APART = int(Status.CAME_APART)

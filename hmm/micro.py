@@ -383,8 +383,11 @@ class DEMMicroModel(MicroModel):
             rve.restore(self._committed)
         self._moved = True
         work0 = rve.steps_run
-        sig = rve.apply_strain(deps, relax=self.relax)
-        c = rve.tangent(self.tangent_method, self.probe, direction=deps)
+        if self.tangent_method == "contact":  # stress and tangent from one pass
+            sig, c = rve.apply_strain(deps, relax=self.relax, tangent=True)
+        else:
+            sig = rve.apply_strain(deps, relax=self.relax)
+            c = rve.tangent(self.tangent_method, self.probe, direction=deps)
         self.steps = rve.steps_run - work0  # perturbation probes included
         self._trial_stress = sig
         self.cost = time.perf_counter() - t0

@@ -45,6 +45,7 @@ from ..status import NONFINITE, OK, REBUILD
 from .kinematics import (_cell_map, _cell_start, _deform_cell, _drift_body, _finish_body,
                          _strain_norm, cell_spin, moved2)
 from .mesh_contacts import mesh_forces, mesh_power, move_meshes
+from .relaxation import relax_check
 from .sphere_contacts import (N_BLOCKS, _compact_inner, _near, _scatter_pair, _sphere_pair,
                               _sphere_wall)
 
@@ -88,7 +89,8 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
 
     @kernel(parallel=True)
     def run_steps(n_steps, prime, resume, settings, body, cell, nbr, pstate,
-                  wstate, index, params_pp, params_pw, status_out, work_out, meshes):
+                  wstate, index, params_pp, params_pw, status_out, work_out, meshes,
+                  check):
         """Advance ``n_steps``; returns the number of completed steps.
 
         The arrays come in bundles (:mod:`dem.state`): ``settings``
@@ -105,6 +107,8 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
         ``status_out`` (4,) int64 receives (code, i, j, inner-list refreshes); ``work_out`` (1,)
         accumulates the work of walls on bodies [J]. ``meshes`` is the
         :class:`~dem.contact.mesh_contacts.MeshLoop` (empty arrays unless ``mesh``).
+        ``check`` (:class:`~dem.state.RelaxCheck`) asks for relaxation checks: the call
+        ends early with status ``RELAXED`` (or ``CAME_APART``) at the check that finds it.
         """
         dt, gravity, damping, skin, overlap_limit, skin_inner, grow = settings
         (pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass, inv_inertia,
@@ -351,6 +355,12 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
                 return done
             if not prime:
                 done += 1
+                if check.every > 0 and done >= check.first \
+                        and (done - check.first) % check.every == 0:
+                    code = relax_check(pos, radius, pairs, img, hmat, fpair, check)
+                    if code != OK:
+                        status_out[0] = code
+                        return done
         return done
 
     _STEPPERS[key] = recipe(run_steps, stepper, DIM, PP, PW, PERIODIC, rolling=ROLL,

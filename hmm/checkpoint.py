@@ -7,7 +7,9 @@ then a rename) every ``[output] checkpoint_every`` load steps::
                  problem as JSON), step, problem (a digest of the validated
                  problem, output settings excluded)
     /solver/     u (n_dofs,), sigma (n_gp, d, d), tangent (n_gp, d, d, d, d),
-                 iterations (k,), attrs: t, cuts, trials
+                 iterations (k,), attrs: t, cuts, trials; after a converged step
+                 the last one's increment, last_increment (n_dofs,), and attr
+                 last_step (its size, the extrapolated predictor's source)
     /curve/      the load-displacement curve so far (as in ``fields.h5``)
     /micro/NNNNNN/  each Gauss point's committed state (``MicroModel.export``)
 
@@ -20,6 +22,7 @@ number of ranks. A killed job loses at most the steps since the last checkpoint.
 
 import hashlib
 import json
+import math
 import os
 
 import h5py
@@ -68,7 +71,8 @@ def checkpoint_units(dim):
     """The unit rules (:func:`dem.io.meta.rules`) of ``checkpoint.h5``: the solver
     state, the curve as in ``fields.h5`` and the micro states (those of a DEM state,
     :func:`dem.io.meta.state_units`)."""
-    return rules((r"solver/u", "m", None), (r"solver/sigma", "Pa", TENSION),
+    return rules((r"solver/u", "m", None), (r"solver/last_increment", "m", None),
+                 (r"solver/sigma", "Pa", TENSION),
                  (r"solver/tangent", "Pa", None), (r"solver/p", "Pa", COMPRESSION),
                  (r"solver/iterations", ONE, None)) \
         + field_units(dim) + state_units(dim)
@@ -88,6 +92,10 @@ def save(path, problem, step, solver, curve, micro_states):
         g.create_dataset("u", data=solver.u)
         g.create_dataset("sigma", data=solver.sigma)
         g.create_dataset("tangent", data=solver.tangent)
+        last = getattr(solver, "last_step", None)
+        if last is not None:  # the extrapolated predictor's source
+            g.attrs["last_step"] = float(last[0])
+            g.create_dataset("last_increment", data=last[1])
         if getattr(solver, "p", None) is not None:  # a saturated problem
             g.create_dataset("p", data=solver.p)
         g.create_dataset("iterations", data=np.asarray(solver.iterations, np.int64))
@@ -156,6 +164,11 @@ class Checkpoint:
                 solver[name] = self._array(g, name, shape, "f")
             if porous is not None:
                 solver["p"] = self._array(g, "p", (porous.n_p,), "f")
+            if "last_increment" in g:  # written since the extrapolated predictor
+                h = float(g.attrs["last_step"])
+                if not (math.isfinite(h) and h > 0.0):
+                    raise ValueError(f"solver last_step {h} is not a positive step")
+                solver["last_step"] = (h, self._array(g, "last_increment", (n,), "f"))
             solver["iterations"] = self._array(g, "iterations", None, "iu").ravel()
             for name, kind in (("t", float), ("cuts", int), ("trials", int)):
                 solver[name] = kind(g.attrs[name])
@@ -195,6 +208,7 @@ class Checkpoint:
         solver.t, solver.cuts = s["t"], s["cuts"]
         if "p" in s:
             solver.p = s["p"]
+        solver.last_step = s.get("last_step")
         solver.iterations = [int(x) for x in s["iterations"]]
         solver.farm.n_trials = s["trials"]
 

@@ -6,7 +6,10 @@ force" and "stiffness" mean: :mod:`hmm.macro`):
 
 1. **Predictor.** The prescribed displacements move by their share of the step;
    the free ones come from the committed tangents (``K_c du = f_ext(t + dt) -
-   f_int(sigma_c)``), so the first trial already sees a sensible strain field.
+   f_int(sigma_c)``), so the first trial already sees a sensible strain field; or,
+   with ``predictor = "extrapolated"``, from the last converged step's increment
+   scaled to this step (under a steady load nearly the answer, where the contact
+   tangent of DEM RVEs, stiffer than they are, undershoots it).
 2. **Iterations.** ``farm.trial(G(du))`` gives stresses and tangents from the
    committed micro states (``G``: the strain increment, or under finite kinematics
    the displacement-gradient increment on the converged configuration, after a
@@ -43,6 +46,7 @@ from scipy import sparse
 from skfem import condense, solve
 
 from .farm import MicroFailure
+from .problem_schema import PREDICTORS
 
 log = logging.getLogger(__name__)
 
@@ -73,6 +77,10 @@ class SolverSettings:
     #: micro model's approximate tangent; off, an exact tangent converges
     #: quadratically
     aitken: bool = True
+    #: the first guess of a step: "tangent" (a linear solve with the committed
+    #: tangents) or "extrapolated" (the last converged step's displacements, scaled
+    #: to this step; the tangent's for the first step)
+    predictor: str = "tangent"
 
     @classmethod
     def from_section(cls, section):
@@ -86,6 +94,9 @@ class SolverSettings:
                 raise ValueError(f"{name} must be positive and finite, got {v}")
         if int(self.max_iterations) < 1:
             raise ValueError("max_iterations must be >= 1")
+        if self.predictor not in PREDICTORS:
+            raise ValueError(f"predictor must be one of {', '.join(PREDICTORS)}, got "
+                             f"{self.predictor!r}")
 
 
 @dataclass
@@ -299,6 +310,9 @@ class Solver:
         #: what the micro models got in the last converged step (n_gp, d, d): the
         #: strain increment, or the displacement-gradient increment (finite)
         self.increment = np.zeros((farm.n, macro.dim, macro.dim))
+        #: the last converged step: its size in load factor and its displacement
+        #: increment (n_dofs,), the extrapolated predictor's source; None before one
+        self.last_step = None
 
     def f_ext(self, t, u=None):
         """External nodal forces [N] at load factor ``t`` (on the configuration of
@@ -389,15 +403,33 @@ class Solver:
         return (f"element {g // macro.n_qp} inverts (det F = {jac[g]:.3g} at its Gauss "
                 f"point {g}; {bad.size} points in all)")
 
+    def _extrapolated(self, prescribed, h):
+        """The last converged step's displacement increment scaled to a step of
+        ``h``, with the prescribed values and tied offsets of ``prescribed`` (the
+        step's :meth:`Supports.prescribe`): under a steady loading the best first
+        guess, which the committed tangents (the contact tangent of DEM RVEs is an
+        upper bound of their stiffness) undershoot."""
+        h0, du0 = self.last_step
+        du = du0 * (h / h0)
+        du[self.supports.dofs] = prescribed[self.supports.dofs]
+        if self._tie is not None:  # each group as its first, plus its offsets
+            t, keep = self._tie
+            offsets = prescribed.copy()
+            offsets[keep] = 0.0
+            du = t @ du[keep] + offsets
+        return du
+
     def _attempt(self, h, nominal, on_iteration):
         macro, farm, st = self.macro, self.farm, self.settings
         sup = self.supports
         t1 = self.t + h
         du = sup.prescribe(np.zeros(macro.n_dofs), self.t, h)
-        # predictor from the committed tangents, on the committed configuration
         k_c = self.stiffness(self.tangent, self.sigma, self.u, t1)
-        r_c = macro.internal_force(self.sigma, self.u) - self.f_ext(t1)
-        du = linear_solve(k_c, -r_c, sup.dofs, du, self._tie)
+        if st.predictor == "extrapolated" and self.last_step is not None:
+            du = self._extrapolated(du, h)
+        else:  # predictor from the committed tangents, on the committed configuration
+            r_c = macro.internal_force(self.sigma, self.u) - self.f_ext(t1)
+            du = linear_solve(k_c, -r_c, sup.dofs, du, self._tie)
         k_max = float(np.abs(k_c.diagonal()).max()) if k_c.shape[0] else 0.0
         growth = 0
         last = math.inf
@@ -449,6 +481,7 @@ class Solver:
             # models' noise over a tiny displacement, which no iteration removes
             if (small_r and small_d) if st.check_residual else (small_d or small_r):
                 self.u += du
+                self.last_step = (h, du.copy())
                 self.t = t1
                 self.sigma, self.tangent = sig, c
                 self.increment = grad

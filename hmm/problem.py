@@ -280,6 +280,9 @@ def _check_fluid(ctx, out, data):
         return
     if out["solver"]["coupling"] is None:
         out["solver"]["coupling"] = "monolithic"
+    if out["solver"]["predictor"] != "tangent":
+        ctx.fail("predictor = \"extrapolated\" is for dry problems: a saturated "
+                 "problem's first guess is the committed tangents'", "[solver]")
     fl, tm = out["fluid"], out["time"]
     if fl["permeability"] is None:
         ctx.fail("missing required key 'permeability' (number or dim x dim array, "

@@ -29,6 +29,8 @@ ANALYTIC = ("linear_elastic", "hyperbolic", "hypoelastic", "neo_hookean")
 #: the small-strain laws (not objective): small kinematics only
 SMALL_ONLY = ("linear_elastic", "hyperbolic")
 KINEMATICS = ("small", "finite")
+#: a load step's first guesses (hmm.coupling.SolverSettings.predictor)
+PREDICTORS = ("tangent", "extrapolated")
 
 SCHEMA = {
     "mesh": Section(doc="The macro domain and its finite elements.", required=True, keys={
@@ -232,6 +234,11 @@ SCHEMA = {
                       doc="Aitken relaxation of successive Newton corrections (steadies "
                           "the DEM's approximate tangent; false: plain Newton, "
                           "quadratic with an exact tangent)."),
+        "predictor": Key("str", default="tangent", choices=PREDICTORS,
+                         doc="A load step's first guess: tangent (a solve with the "
+                             "committed tangents) or extrapolated (the last step's "
+                             "displacements, scaled: fewer iterations under a steady "
+                             "load; dry problems only)."),
         "coupling": Key("str", choices=("monolithic", "fixed_stress"),
                         doc="A saturated problem: Newton on displacement and pore "
                             "pressure at once (monolithic, the default), or the "

@@ -116,6 +116,7 @@ def test_restart_of_a_saturated_run_repeats_it(tmp_path):
     ({"fluid": None, "time": None, "drainage": None,
       "solver": {"coupling": "fixed_stress"}}, r"coupling applies to a saturated"),
     ({"solver": {"coupling": "staggered"}}, r"coupling must be"),
+    ({"solver": {"predictor": "extrapolated"}}, r"extrapolated.*is for dry problems"),
 ])
 def test_saturated_problem_files_are_checked_in_one_line(changes, message):
     with pytest.raises(SceneError, match=message) as err:

@@ -75,6 +75,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/mpi_scaling.py
 	DIMS="2 3" $(BIN)/python benchmarks/rve_vs_yade.py
 	$(BIN)/python benchmarks/rve_size_accuracy.py
+	DIM=3 $(BIN)/python benchmarks/rve_size_accuracy.py
 	$(BIN)/python benchmarks/rve_step_limit.py
 	$(BIN)/python benchmarks/hmm_vs_femxdem.py
 	$(BIN)/python benchmarks/hmm_tangent_adaptive.py

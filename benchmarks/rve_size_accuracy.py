@@ -12,7 +12,9 @@ Two charts, the data a user needs to pick the smallest RVE that answers the ques
 friction angle over the seeds (mean, standard deviation, range) and the median wall
 time of one increment (one Gauss-point-sized call under mixed control). The scatter
 of the peak angle over seeds is the RVE's own sampling error: a Gauss point cannot
-be more certain than it.
+be more certain than it. A packing that cannot be made (its consolidation does not
+relax within the step cap) is listed with its error in ``size_failed`` and left out of
+the summary.
 
 **Strain cap.** On the 400-disk packing (seed 1) at three states of a drained biaxial
 path (axial strain 0, 0.5 %, 1 %), a Gauss-point call -- a strain increment of
@@ -26,13 +28,23 @@ default is 0.3; triangles). It shows which knob sets the error: the loading rate
 unit of the packing's response time (cap over time step), not the relaxation
 tolerance.
 
+**3D** (``DIM=3``): the size chart alone, for spheres (250 ... 4,000 by default; the
+contact law of ``examples/triaxial_3d.toml``, kn = 1e5 N/m, kt = 5e4 N/m) through the
+drained triaxial test of ``hmm rve`` (lateral stresses 100 kPa), into
+``results/rve_size_accuracy_3d.{json,png}``. Each size also reports the time of a
+Gauss-point call as that example makes it (``call_time``): an axial strain increment
+of 1e-3 from the consolidated packing, not relaxed, with the contact tangent (median
+of five, the state restored before each).
+
 usage::
 
     python benchmarks/rve_size_accuracy.py   # results/rve_size_accuracy.{json,png}
+    DIM=3 python benchmarks/rve_size_accuracy.py   # results/rve_size_accuracy_3d.*
 
-environment: SIZES ("100 200 400 1000 2000 4000"), SEEDS (5), AXIAL (0.03), CAPS
-("1e-4 1e-5 3e-6 1e-6 5e-7 2e-7"), REPS (3), JOBS (2: worker processes at once, one
-thread each), PART ("all", "size" or "cap"; one part keeps the other's entries).
+environment: DIM (2 or 3), SIZES ("100 200 400 1000 2000 4000"; 3D "250 500 1000 2000
+4000"), SEEDS (5), AXIAL (0.03), CAPS ("1e-4 1e-5 3e-6 1e-6 5e-7 2e-7"), REPS (3), JOBS
+(2: worker processes at once, one thread each), PART ("all", "size" or "cap"; one part
+keeps the other's entries; 3D: "size").
 """
 
 import json
@@ -45,12 +57,16 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common as C
 
-OUT = C.RESULTS / "rve_size_accuracy.json"
-FIGURE = C.RESULTS / "rve_size_accuracy.png"
+DIM = C.env_int("DIM", 2)
+_SUFFIX = "" if DIM == 2 else "_3d"
+OUT = C.RESULTS / f"rve_size_accuracy{_SUFFIX}.json"
+FIGURE = C.RESULTS / f"rve_size_accuracy{_SUFFIX}.png"
+#: what the RVE holds, for the labels
+PARTICLES = "disks" if DIM == 2 else "spheres"
 
 P0 = 1.0e5
 RADIUS = (0.8e-3, 1.2e-3)
-LAW = {"kn": 1e8, "kt": 5e7, "mu": 0.5}
+LAW = {"kn": 1e8, "kt": 5e7, "mu": 0.5} if DIM == 2 else {"kn": 1e5, "kt": 5e4, "mu": 0.5}
 INCREMENT = 1e-3
 CALL_STRAIN = (3e-4, -1e-3)  # lateral, axial: a dilating biaxial increment
 CALL_STATES = (0.0, 0.005, 0.01)  # axial strains of the states the calls start from
@@ -65,7 +81,7 @@ def _config(n, seed, axial):
     from hmm.experiment import validate_config
 
     return validate_config({
-        "packing": {"dim": 2, "count": n, "radius": list(RADIUS), "p0": P0,
+        "packing": {"dim": DIM, "count": n, "radius": list(RADIUS), "p0": P0,
                     "seed": seed, "consolidation_friction": 0.0},
         "contact": {"law": "linear", **LAW},
         "test": {"axial_strain": axial, "increment": INCREMENT}}, "rve_size.toml")
@@ -88,14 +104,33 @@ def size_run(n, seed, axial):
             times.append(now - last[0])
         last[0] = now
 
+    call = _call_time(packing[0]) if DIM == 3 else None
     res = compress(cfg, on_increment=tick, packing=packing)
     s = res.summary
-    return {"n": n, "seed": seed, "generation_time": t_gen,
+    return {"n": n, "seed": seed, "generation_time": t_gen, "call_time": call,
             "peak_friction_angle": s["peak_friction_angle"],
             "peak_axial_strain": s["peak_axial_strain"],
             "initial_void_ratio": s["initial_void_ratio"],
             "increment_time": C.median(times), "increment_times": times,
             "relax_steps": res.curves["relax_steps"][1:].tolist()}
+
+
+def _call_time(rve, reps=5):
+    """Median time [s] of the 3D example's Gauss-point call from ``rve``'s state: 1e-3
+    of axial strain, not relaxed, stress and contact tangent; the state restored."""
+    import numpy as np
+
+    snap = rve.snapshot()
+    deps = np.zeros((DIM, DIM))
+    deps[1, 1] = -INCREMENT
+    times = []
+    for _ in range(reps + 1):  # the first warms the loop up
+        rve.restore(snap)
+        t0 = time.perf_counter()
+        rve.apply_strain(deps, relax=False, tangent=True)
+        times.append(time.perf_counter() - t0)
+    rve.restore(snap)
+    return C.median(times[1:])
 
 
 def cap_run(reps):
@@ -169,10 +204,13 @@ def summarize_sizes(runs):
     for n in sorted({r["n"] for r in runs}):
         mine = [r for r in runs if r["n"] == n]
         phi = np.array([r["peak_friction_angle"] for r in mine])
-        out.append({"n": n, "seeds": len(mine), "peak_friction_angle_mean": phi.mean(),
+        out.append({"n": n, "seeds": len(mine), "seeds_used": [r["seed"] for r in mine],
+                    "peak_friction_angle_mean": phi.mean(),
                     "peak_friction_angle_std": phi.std(ddof=1) if phi.size > 1 else 0.0,
                     "peak_friction_angle_range": [phi.min(), phi.max()],
                     "increment_time": C.median([r["increment_time"] for r in mine]),
+                    "call_time": C.median([r["call_time"] for r in mine])
+                    if mine[0].get("call_time") is not None else None,
                     "generation_time": C.median([r["generation_time"] for r in mine])})
     return out
 
@@ -206,10 +244,12 @@ def summarize_dt(rows):
 def visualize(data):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+    from matplotlib.ticker import NullFormatter
 
-    fig = Figure(figsize=(13.0, 3.8), layout="constrained")
+    caps = data.get("cap_summary") or []
+    fig = Figure(figsize=(13.0 if caps else 9.0, 3.8), layout="constrained")
     FigureCanvasAgg(fig)
-    ax1, ax2, ax3 = fig.subplots(1, 3)
+    ax1, ax2, *ax3 = fig.subplots(1, 3 if caps else 2)
     sizes = data.get("size_summary") or []
     if sizes:
         n = [s["n"] for s in sizes]
@@ -218,17 +258,29 @@ def visualize(data):
         ax1.errorbar(n, [s["peak_friction_angle_mean"] for s in sizes],
                      yerr=[s["peak_friction_angle_std"] for s in sizes], fmt="k-s",
                      capsize=3, label="mean ± std over seeds")
-        ax1.set(xscale="log", xlabel="disks in the RVE", ylabel="peak friction angle [deg]",
+        ax1.set(xscale="log", xlabel=f"{PARTICLES} in the RVE",
+                ylabel="peak friction angle [deg]",
                 title="size: scatter of the answer")
         ax1.legend(loc="upper right")
-        ax2.loglog(n, [s["increment_time"] for s in sizes], "k-o")
+        ax2.loglog(n, [s["increment_time"] for s in sizes], "k-o",
+                   label="relaxed 1e-3 increment, servo")
+        if sizes[0].get("call_time") is not None:
+            ax2.loglog(n, [s["call_time"] for s in sizes], "b-s",
+                       label="Gauss-point call (unrelaxed 1e-3)")
+            ax2.legend(loc="upper left", fontsize=8)
         for s in sizes:
             ax2.annotate(f"±{s['peak_friction_angle_std']:.2f}°",
                          (s["n"], s["increment_time"]), textcoords="offset points",
                          xytext=(4, -10), fontsize=8)
-        ax2.set(xlabel="disks in the RVE", ylabel="time per 1e-3 increment [s]",
+        ax2.set(xlabel=f"{PARTICLES} in the RVE", ylabel="time per 1e-3 increment [s]",
                 title="size: cost (labels: std of peak angle)")
-    caps = data.get("cap_summary") or []
+    for ax in (ax1, ax2):  # the sizes themselves as ticks (log minor labels overlap)
+        if sizes:
+            ax.set_xticks(n, [f"{x:,}" for x in n])
+            ax.xaxis.set_minor_formatter(NullFormatter())
+    if not caps:
+        return fig
+    ax3 = ax3[0]
     for tol, style in zip(TOLS, ("k-o", "r--s"), strict=True):
         mine = [c for c in caps if c["tol"] == tol]
         if not mine:
@@ -244,26 +296,26 @@ def visualize(data):
         ax3.plot(c["time"], c["max_error"], "b^", ms=5)
         ax3.annotate(f"{c['cap']:.0e}, dt {c['dt_factor']:g}", (c["time"], c["max_error"]),
                      fontsize=6, color="b", textcoords="offset points", xytext=(3, -8))
-    if caps:
-        ax3.set(xlabel="time per Gauss-point call [s]",
-                ylabel="stress error (max over 3 states)",
-                title="400 disks: strain cap per step (labels)")
-        ax3.legend(loc="upper right")
+    ax3.set(xlabel="time per Gauss-point call [s]",
+            ylabel="stress error (max over 3 states)",
+            title="400 disks: strain cap per step (labels)")
+    ax3.legend(loc="upper right")
     return fig
 
 
 def main():
-    part = os.environ.get("PART", "all")
-    if part not in ("all", "size", "cap"):
-        raise SystemExit(f"PART must be all, size or cap, got {part!r}")
-    sizes = [int(x) for x in C.env_list("SIZES", "100 200 400 1000 2000 4000")]
+    part = os.environ.get("PART", "all" if DIM == 2 else "size")
+    if part not in (("all", "size", "cap") if DIM == 2 else ("size",)):
+        raise SystemExit(f"PART must be all, size or cap (3D: size), got {part!r}")
+    sizes = [int(x) for x in C.env_list(
+        "SIZES", "100 200 400 1000 2000 4000" if DIM == 2 else "250 500 1000 2000 4000")]
     seeds = C.env_int("SEEDS", 5)
     axial = float(os.environ.get("AXIAL", "0.03"))
     reps, jobs = C.env_int("REPS", 3), C.env_int("JOBS", 2)
     data = json.loads(OUT.read_text()) if part != "all" and OUT.exists() else {}
     stamp = {"date": C.now(), "revision": C.git_revision(), "loadavg": C.loadavg(),
              "jobs": jobs}
-    data.update({"benchmark": "rve_size_accuracy", "date": stamp["date"],
+    data.update({"benchmark": "rve_size_accuracy" + _SUFFIX, "dim": DIM, "date": stamp["date"],
                  "machine": C.machine_info(), "versions": C.our_versions(),
                  "revision": stamp["revision"]})
     data.setdefault("settings", {}).update(
@@ -293,26 +345,36 @@ def main():
         def one(task):
             n, s = task
             r = C.run_worker(__file__, ["size", n, s, axial], threads=1, timeout=14400)
+            call = f", call {1e3 * r['call_time']:.1f} ms" if r.get("call_time") else ""
             print(f"size {n} seed {s}: " + (f"peak {r['peak_friction_angle']:.2f} deg, "
-                  f"{r['increment_time']:.3f} s per increment" if r.get("ok")
+                  f"{r['increment_time']:.3f} s per increment{call}" if r.get("ok")
                   else r["error"]), flush=True)
             return r
 
         with ThreadPoolExecutor(max_workers=jobs) as pool:
             runs = list(pool.map(one, tasks))
-        bad = [r["error"] for r in runs if not r.get("ok")]
-        if bad:
-            raise RuntimeError("a size run failed: " + bad[0])
+        # a packing that cannot be made (its consolidation did not relax within the
+        # step cap) is a result too: kept with its error, left out of the summary
+        failed = [{"n": n, "seed": s, "error": r["error"]}
+                  for (n, s), r in zip(tasks, runs, strict=True) if not r.get("ok")]
+        runs = [r for r in runs if r.get("ok")]
+        if not runs:
+            raise RuntimeError("every size run failed: " + failed[0]["error"])
         data["size_runs"] = sorted(runs, key=lambda r: (r["n"], r["seed"]))
+        data["size_failed"] = failed
         data["size_summary"] = summarize_sizes(runs)
         data["measured_size"] = stamp
     C.write_json(OUT, data)
     FIGURE.parent.mkdir(parents=True, exist_ok=True)
     visualize(data).savefig(FIGURE, dpi=120)
+    for f in data.get("size_failed") or []:
+        print(f"{f['n']:5d} {PARTICLES}, seed {f['seed']}: no packing: "
+              f"{f['error'].split(' | ')[-1]}")
     for s in data.get("size_summary") or []:
-        print(f"{s['n']:5d} disks: peak phi {s['peak_friction_angle_mean']:.2f} ± "
+        call = f", call {1e3 * s['call_time']:.1f} ms" if s.get("call_time") else ""
+        print(f"{s['n']:5d} {PARTICLES}: peak phi {s['peak_friction_angle_mean']:.2f} ± "
               f"{s['peak_friction_angle_std']:.2f} deg, {s['increment_time']:.3f} s per "
-              f"increment")
+              f"increment{call}")
 
 
 def worker(args):

@@ -177,6 +177,32 @@ def test_restart_continues_a_stopped_run_bit_for_bit(tmp_path):
     assert r.returncode == 2 and "belongs to another problem" in r.stderr
 
 
+def test_a_checkpoint_without_the_work_curves_restarts_with_them_unknown(tmp_path):
+    """A checkpoint written before the runs counted their work (no ``curve/work``)
+    restarts: the steps it holds get NaN work (unknown, not zero), the steps run after
+    the restart their own counts, and the rest of the curve is as without the loss. The
+    first step after a restart also counts the call of every point that re-evaluates
+    its starting state (16 points here), as it does with the work curves intact."""
+    (tmp_path / "p.toml").write_text(ELASTIC.replace(
+        "steps = 2", "steps = 3").replace("[load]", "[output]\ncheckpoint_every = 1\n\n[load]"))
+    assert _hmm("run", "p.toml", "-o", "full", cwd=tmp_path).returncode == 0
+    assert _hmm("run", "p.toml", "-o", "cut", "--stop-after", "1",
+                cwd=tmp_path).returncode == 0
+    with h5py.File(tmp_path / "cut" / "checkpoint.h5", "a") as f:
+        del f["curve/work"]  # as an earlier version wrote it
+    r = _hmm("run", "p.toml", "-o", "cut", "--restart", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    with h5py.File(tmp_path / "full" / "fields.h5") as a, \
+            h5py.File(tmp_path / "cut" / "fields.h5") as b:
+        for name in ("rve_calls", "rve_seconds", "dem_steps"):
+            full, cut = a["curve/work/" + name][()], b["curve/work/" + name][()]
+            assert cut.shape == full.shape == (4,)
+            assert np.isnan(cut[:2]).all() and np.isfinite(cut[2:]).all(), name
+        calls = a["curve/work/rve_calls"][()]
+        assert np.array_equal(b["curve/work/rve_calls"][2:], calls[2:] + [16, 0])
+        assert np.array_equal(a["curve/force/top"][()], b["curve/force/top"][()])
+
+
 def test_the_field_plot_shows_void_ratio_only_where_every_point_ran_its_rve():
     from hmm.run_figures import _second_panel
 

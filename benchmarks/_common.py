@@ -200,6 +200,24 @@ def median(xs):
     return statistics.median(v) if v else None
 
 
+def time_rve_calls(rve, snap, deps, reps, **call):
+    """``reps`` Gauss-point calls ``rve.apply_strain(deps, tangent=True, **call)``, each
+    from the state ``snap`` (restored before it), after one warm-up: their wall times
+    [s] and the median of their DEM steps. The RVE is left at ``snap``."""
+    import time
+
+    times, steps = [], []
+    for _ in range(reps + 1):
+        rve.restore(snap)
+        s0 = rve.sim.step
+        t0 = time.perf_counter()
+        rve.apply_strain(deps, tangent=True, **call)
+        times.append(time.perf_counter() - t0)
+        steps.append(rve.sim.step - s0)
+    rve.restore(snap)
+    return times[1:], median(steps[1:])
+
+
 def ratio(a, b):
     return a / b if a is not None and b else None
 

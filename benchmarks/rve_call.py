@@ -45,15 +45,7 @@ def measure(dim, reps):
     def calls(strain, relax):
         deps = np.zeros((dim, dim))
         deps[-1, -1] = -strain
-        times, steps = [], []
-        for _ in range(reps + 1):  # the first call is a warm-up
-            r.restore(snap)
-            s0 = r.sim.step
-            t0 = time.perf_counter()
-            r.apply_strain(deps, relax=relax, tangent=True)
-            times.append(time.perf_counter() - t0)
-            steps.append(r.sim.step - s0)
-        return times[1:], C.median(steps[1:])
+        return C.time_rve_calls(r, snap, deps, reps, relax=relax)
 
     times, steps = calls(1e-4, True)
     times_unrelaxed, steps_unrelaxed = calls(1e-3, False)

@@ -120,17 +120,9 @@ def _call_time(rve, reps=5):
     of axial strain, not relaxed, stress and contact tangent; the state restored."""
     import numpy as np
 
-    snap = rve.snapshot()
     deps = np.zeros((DIM, DIM))
     deps[1, 1] = -INCREMENT
-    times = []
-    for _ in range(reps + 1):  # the first warms the loop up
-        rve.restore(snap)
-        t0 = time.perf_counter()
-        rve.apply_strain(deps, relax=False, tangent=True)
-        times.append(time.perf_counter() - t0)
-    rve.restore(snap)
-    return C.median(times[1:])
+    return C.median(C.time_rve_calls(rve, rve.snapshot(), deps, reps, relax=False)[0])
 
 
 def cap_run(reps):

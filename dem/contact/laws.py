@@ -43,7 +43,9 @@ def tangential(hist, k, nx, ny, nz, tvx, tvy, tvz, kt, ct, cap, dt):
     exactly the capped force, and its own stretch rate is what the dashpot then
     needs: ``kt s_new + ct (s_new - s_old) / dt = -f``, so the spring moves from its
     old length towards ``cap / kt`` along the force, never against it. With no
-    dashpot that is the usual reset ``s = -f / kt``.
+    dashpot that is the usual reset ``s = -f / kt``. With ``dt`` = 0 (a pass that
+    evaluates forces without advancing time) the spring keeps its length, the limit
+    of that rule as ``dt`` goes to 0.
     """
     sn = hist[k, 0] * nx + hist[k, 1] * ny + hist[k, 2] * nz
     rx, ry, rz = hist[k, 0] - sn * nx, hist[k, 1] - sn * ny, hist[k, 2] - sn * nz
@@ -53,8 +55,9 @@ def tangential(hist, k, nx, ny, nz, tvx, tvy, tvz, kt, ct, cap, dt):
     if ft2 > cap * cap:  # sliding
         scale = cap / math.sqrt(ft2)
         ftx, fty, ftz = ftx * scale, fty * scale, ftz * scale
-        w = ct / dt
-        if kt + w > 0.0:
+        # dt = 0 evaluates without advancing (a priming pass): the spring stays
+        w = ct / dt if dt > 0.0 else 0.0
+        if dt > 0.0 and kt + w > 0.0:
             sx = (w * rx - ftx) / (kt + w)
             sy = (w * ry - fty) / (kt + w)
             sz = (w * rz - ftz) / (kt + w)

@@ -265,6 +265,31 @@ def test_prime_with_a_list_gone_stale_rebuilds_it():
     np.testing.assert_allclose(bodies.force[1, 0], law.kn * ov, rtol=1e-12)
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("law", [
+    dem.LinearSpring(kn=1e5, kt=4e4, mu=0.3, gamma_t=40.0),
+    dem.HertzMindlin(young=7e7, poisson=0.3, restitution=0.5, mu=0.3),
+], ids=["linear_dashpot", "hertz_damped"])
+def test_priming_a_sliding_damped_contact_keeps_its_spring(dim, law):
+    """A pass that evaluates forces without advancing time (dt = 0: priming) finds a
+    contact that slides, its tangential dashpot alone past the Coulomb limit. The
+    spring keeps its length (the limit of the sliding rule as dt -> 0); it was once
+    divided by dt = 0, and the first step of such a scene blew up."""
+    pos = np.zeros((2, dim))
+    pos[1, 0] = 1.9 * R
+    bodies = dem.Bodies.spheres(pos, radius=R, density=RHO)
+    bodies.vel[1, 1] = 50.0  # sliding past body 0: the dashpot alone is past the limit
+    sim = dem.Simulation(bodies, law)
+    sim.prime()
+    hist = sim.pair_state.hist
+    assert np.all(hist == 0.0)
+    fn = bodies.force[1, 0]
+    assert fn > 0.0
+    np.testing.assert_allclose(abs(bodies.force[1, 1]), law.mu * fn, rtol=1e-12)
+    sim.run(20)
+    assert np.all(np.isfinite(bodies.pos)) and np.all(np.isfinite(sim.pair_state.hist))
+
+
 @pytest.mark.parametrize("name", ["linear", "hertz_mindlin"])
 def test_law_force_is_minus_energy_gradient(name):
     """Normal force = dU/d(overlap); tangential spring force = -dU/ds (no sliding)."""

@@ -14,6 +14,9 @@ file means a cold compile, never a stale kernel.
 
 Builders
 --------
+:func:`branch_on` writes the law dispatch of :mod:`dem.contact.laws.dispatch`: an
+inlined kernel with one branch per registered law.
+
 Two things are compiled per scene rather than per package, both here:
 
 * :func:`specialise`: a loop written once, compiled with some of the module-level
@@ -136,6 +139,36 @@ def specialise(py_func, *, parallel=False, **bind):
     fn = pytypes.FunctionType(py_func.__code__, {**own, **bind}, py_func.__name__,
                               py_func.__defaults__, py_func.__closure__)
     return kernel(fn, parallel=parallel, cache=False)
+
+
+def branch_on(name, params, cases, fallback, doc=""):
+    """An inlined kernel ``name(code, *params)`` that calls ``cases[code](*params)``.
+
+    ``cases`` maps each integer code to a compiled function, ``fallback`` is called for
+    any other code. The function is written with one branch per case and no more:
+    numba types and lowers every branch of a function inlined into a caller (its dead
+    branch pruning runs before inlining), so a fixed chain of spare branches costs
+    compile time in every loop that inlines it; a caller whose ``code`` is a constant
+    gets the other branches folded away by LLVM. The cases are the new function's own
+    globals, read when a caller compiles (a disk-cached caller is keyed on the package
+    sources, :func:`source_stamp`, so the cases must come from them).
+    """
+    if not all(str(x).isidentifier() for x in (name, *params)):
+        raise ValueError(f"branch_on: names must be identifiers, got {name!r}, {params!r}")
+    args = ", ".join(params)
+    lines = [f"def {name}(code, {args}):"]
+    scope = {"_fallback": fallback}
+    for code, fn in sorted(cases.items()):
+        scope[f"_case_{int(code)}"] = fn
+        lines.append(f"    if code == {int(code)}:")
+        lines.append(f"        return _case_{int(code)}({args})")
+    lines.append(f"    return _fallback({args})")
+    namespace = {}
+    exec(compile("\n".join(lines), f"<dem._jit.branch_on {name}>", "exec"), scope, namespace)
+    fn = namespace[name]
+    fn.__doc__ = doc
+    # never compiled on its own (it has no source file to cache by): inlined only
+    return kernel(fn, inline=True, cache=False)
 
 
 # --------------------------------------------------------------------------- user SDFs

@@ -200,7 +200,8 @@ def _moments(sim, hist, sign):
     r = 1 if sim.dim == 2 else 3
     if not sim.model.rolling:
         return np.zeros((hist.shape[0], r))
-    return sign * hist[:, COL_MOMENT:COL_MOMENT + r]
+    first = hist.shape[1] + COL_MOMENT  # counted from the row's end
+    return sign * hist[:, first:first + r]
 
 
 def _concatenate(out, d):

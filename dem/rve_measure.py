@@ -21,7 +21,7 @@ of any shape in equilibrium.
 import math
 
 from ._jit import kernel
-from .contact.laws import stiffness_hertz_mindlin, stiffness_linear
+from .contact.laws import law_stiffness
 from .contact.relaxation import add_pair_force, branch, force_ratio
 
 
@@ -34,7 +34,7 @@ def measure_periodic(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, fpa
     Parameters
     ----------
     code : int
-        Law code of the sphere-sphere contacts (0 linear, 1 Hertz-Mindlin).
+        Law code of the sphere-sphere contacts (:data:`dem.contact.laws.LAWS`).
     pos, vel : (n, d) f8
         Positions [m] and fluctuation velocities [m/s].
     mass, radius : (n,) f8
@@ -104,10 +104,7 @@ def measure_periodic(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, fpa
         if use_tangent:
             r_eff = radius[i] * radius[j] / (radius[i] + radius[j])
             p = params[mat_id[i], mat_id[j]]
-            if code == 0:
-                kn, kt = stiffness_linear(ov, r_eff, p)
-            else:
-                kn, kt = stiffness_hertz_mindlin(ov, r_eff, p)
+            kn, kt = law_stiffness(code, ov, r_eff, p)
             for a in range(d):
                 for b in range(d):
                     for c in range(d):

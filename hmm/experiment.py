@@ -55,16 +55,10 @@ OUTPUTS = ("rve_test.h5", "rve_test.png", "packing.h5")
 
 # --------------------------------------------------------------------------- packing
 def _law(c):
-    from dem import HertzMindlin, LinearSpring
+    from dem.contact.laws import law_class
     from dem.io.materials import rolling_spec
 
-    if c["law"] == "linear":
-        return LinearSpring(kn=c["kn"], kt=c["kt"], mu=c["mu"], gamma_n=c["gamma_n"],
-                            gamma_t=c["gamma_t"], restitution=c["restitution"],
-                            rolling=rolling_spec(c), limit_damping=c["limit_damping"])
-    return HertzMindlin(young=c["young"], poisson=c["poisson"],
-                        restitution=c["restitution"], mu=c["mu"], rolling=rolling_spec(c),
-                        limit_damping=c["limit_damping"])
+    return law_class(c["law"]).from_table(c, rolling=rolling_spec(c))
 
 
 def make_packing(cfg):

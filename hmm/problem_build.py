@@ -294,7 +294,7 @@ def _packing(problem, k, dim, progress, spot=None):
 
     from .experiment_config import shape_maker
 
-    law = LinearSpring(kn=mc["kn"], kt=mc["kt"], mu=mc["mu"], rolling=rolling_spec(mc))
+    law = LinearSpring.from_table(mc, rolling=rolling_spec(mc))
     return rvemod.generate(dim, mc["count"], mc["radius"], law, mc["p0"],
                            density=mc["density"], seed=mc["seed"] + k,
                            friction=mc["consolidation_friction"],

@@ -56,13 +56,15 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
             serial=False):
     """The compiled multi-step kernel for ``dim`` (2 or 3) and two law codes.
 
-    ``law_pp``/``law_pw`` are law codes (a law class's ``code``: 0 linear, 1
-    Hertz-Mindlin); ``periodic`` (or ``deform``) compiles in the periodic-image shifts
-    and the deforming cell (:mod:`dem.boundary`), one kernel for both: with
-    ``is_cell`` true at run time, ``hmat`` is advanced by ``lgrad`` every step, bodies
-    are carried by the affine field and ``cellref`` (2, d, d) holds H^-1 at the
-    Verlet build and at the inner list's making; an orthogonal periodic box passes
-    ``is_cell`` false and a zero ``lgrad``, and every affine term adds an exact zero.
+    ``law_pp``/``law_pw`` are law codes (a registered law class's ``code``,
+    :data:`dem.contact.laws.LAWS`: the loop calls that law's kernels, resolved at
+    compile time by :mod:`dem.contact.laws.dispatch`); ``periodic`` (or ``deform``)
+    compiles in the periodic-image shifts and the deforming cell (:mod:`dem.boundary`),
+    one kernel for both: with ``is_cell`` true at run time, ``hmat`` is advanced by
+    ``lgrad`` every step, bodies are carried by the affine field and ``cellref``
+    (2, d, d) holds H^-1 at the Verlet build and at the inner list's making; an orthogonal
+    periodic box passes ``is_cell`` false and a zero ``lgrad``, and every affine term
+    adds an exact zero.
     ``rolling`` compiles in rolling resistance (:mod:`dem.contact.rolling`), whose
     parameters follow the law's in the parameter tables. ``mesh`` compiles in the
     contacts with triangle-mesh walls (:mod:`dem.contact.mesh_contacts`): their motion

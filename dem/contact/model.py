@@ -10,7 +10,8 @@ import math
 
 import numpy as np
 
-from .laws import N_HIST, Law
+from .laws import Law
+from .laws.dispatch import check_built
 from .rolling import N_HIST as N_HIST_ROLLING
 
 
@@ -41,11 +42,14 @@ class ContactModel:
         #: contact (laws without it get zero parameters), in longer history rows
         self.rolling = any(v.rolling is not None for bucket in self.laws.values()
                            for v in bucket.values())
-        self.n_hist = N_HIST_ROLLING if self.rolling else N_HIST
+        #: columns of a history row: the widest law's own, then the rolling state
+        self.n_hist = (max(v.n_hist for bucket in self.laws.values() for v in bucket.values())
+                       + (N_HIST_ROLLING if self.rolling else 0))
 
     @staticmethod
     def _normalise(law, name):
         if isinstance(law, Law):
+            check_built(law)
             return {None: law}
         if isinstance(law, dict) and law:
             out = {}
@@ -54,6 +58,8 @@ class ContactModel:
                 raise ValueError(f"{name}: every material pair of a bucket needs the same law kind")
             for (a, b), v in law.items():
                 out[(int(a), int(b))] = v
+            for v in out.values():
+                check_built(v)
             return out
         raise TypeError(f"{name} must be a Law or a dict {{(mat_a, mat_b): Law}}, got {law!r}")
 

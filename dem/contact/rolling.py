@@ -24,10 +24,12 @@ radius: ``r_i r_j / (r_i + r_j)``, the sphere's radius on a wall):
   dashpot ``2 eta_roll sqrt(I_w k_w)``, ``I_w = 1 / (1 / I_i + 1 / I_j)``, and the cap
   ``mu_twist R max(f_n, 0)``.
 
-The moments live in the contact's history row, after the law's three columns: the
-rolling spring (3 components [N m]; 2D uses the first, about z), the twisting spring
-[N m], and the moment the contact applied at the last force evaluation (3 components
-[N m]; the homogenised couple stress reads it). A 2D contact has only rolling, about z.
+The moments live in the last seven columns of the contact's history row, after the
+law's own (however many the law has): the rolling spring (3 components [N m]; 2D uses
+the first, about z), the twisting spring [N m], and the moment the contact applied at
+the last force evaluation (3 components [N m]; the homogenised couple stress reads it).
+A 2D contact has only rolling, about z. The columns are counted from the row's end
+(:data:`COL_ROLL` and the others are negative), so the kernels need not know the law.
 """
 
 import math
@@ -36,11 +38,12 @@ import numpy as np
 
 from .._jit import kernel
 
-#: history columns of a law with rolling resistance: the law's tangential spring (3),
-#: the rolling spring (3), the twisting spring (1), the moment applied (3)
-N_HIST = 10
-#: first column of the rolling spring, of the twisting spring, of the applied moment
-COL_ROLL, COL_TWIST, COL_MOMENT = 3, 6, 7
+#: history columns rolling resistance adds after the law's own: the rolling spring (3),
+#: the twisting spring (1), the moment applied (3)
+N_HIST = 7
+#: first column of the rolling spring, of the twisting spring, of the applied moment,
+#: counted from the end of the history row
+COL_ROLL, COL_TWIST, COL_MOMENT = -7, -4, -3
 #: rolling parameters per material pair, appended to the law's row:
 #: (mu_roll [-], k_roll [-], eta_roll [-], mu_twist [-], k_twist [-])
 N_PARAM = 5
@@ -145,7 +148,7 @@ def pair_inertia(inv_mass_i, inv_inertia_i, r_i, inv_mass_j, inv_inertia_j, r_j)
 
 def rolling_energy(q, hist, kn, r_roll):
     """Elastic energy [J] of the rolling and twisting springs of some contacts: their
-    rolling parameters ``q`` (c, 5), history rows ``hist`` (c, N_HIST), normal stiffness
+    rolling parameters ``q`` (c, 5), history rows ``hist`` (c, law's + N_HIST), normal stiffness
     ``kn`` (c,) [N/m] and rolling radius ``r_roll`` (c,) [m]."""
     base = kn * r_roll**2
     kr, kw = q[:, 1] * base, q[:, 4] * base

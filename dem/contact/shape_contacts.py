@@ -154,9 +154,8 @@ def pair_force(dim, code, deform, rate, turns, spin, k, i, j, a, b, swap, sx, sy
     if ov <= 0.0:
         if touch[k]:  # the contact opened: its history ends
             touch[k] = 0
-            hist[k, 0] = 0.0
-            hist[k, 1] = 0.0
-            hist[k, 2] = 0.0
+            for c in range(hist.shape[1]):
+                hist[k, c] = 0.0
         for c in range(fpair.shape[1]):
             fpair[k, c] = 0.0
         for c in range(tpair.shape[1]):
@@ -221,9 +220,8 @@ def wall_force(dim, code, k, i, w, ov, nx, ny, nz, cx, cy, cz, pos, vel, ang_vel
     """Law and rows of wall pair k (body i, its touching part of radius ``ri``, wall w);
     returns the wall's power on i [W]."""
     if ov <= 0.0:
-        whist[k, 0] = 0.0
-        whist[k, 1] = 0.0
-        whist[k, 2] = 0.0
+        for c in range(whist.shape[1]):
+            whist[k, c] = 0.0
         for c in range(wforce.shape[1]):
             wforce[k, c] = 0.0
         for c in range(wtorque.shape[1]):

@@ -19,10 +19,10 @@ gets its own (planes first, then meshes, in file order). A scene with one ``[con
 table and no wall material keeps every body on row 0 and one law for all.
 """
 
-import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
-from .schema import NONNEGATIVE, POSITIVE, UNIT_OPEN_CLOSED, Key, Range
+from ..contact.laws import LAWS, law_class
+from .schema import NONNEGATIVE, UNIT_OPEN_CLOSED, Key
 from .text import show as _show
 
 __all__ = ["DEFAULT_GROUP", "ROLLING_KEYS", "WALLS", "WALL_MATERIAL_KEYS", "Materials",
@@ -32,8 +32,6 @@ __all__ = ["DEFAULT_GROUP", "ROLLING_KEYS", "WALLS", "WALL_MATERIAL_KEYS", "Mate
 DEFAULT_GROUP = "particles"
 #: the group of every wall
 WALLS = "walls"
-
-_LAW_NAMES = {"linear": "LinearSpring", "hertz_mindlin": "HertzMindlin"}
 
 #: rolling and twisting resistance (:class:`dem.Rolling`), keys of every law's table
 ROLLING_KEYS = {
@@ -52,27 +50,9 @@ ROLLING_KEYS = {
                    doc="Twisting stiffness over k_n R^2; default 2.25 mu_twist^2."),
 }
 
-#: the keys a [[walls]] table may set for its own material, by law
-WALL_KEYS = {"linear": ("kn", "kt", "gamma_n", "gamma_t", "mu", "restitution", "mu_roll"),
-             "hertz_mindlin": ("young", "poisson", "rigid", "mu", "restitution", "mu_roll")}
-
 _FALLBACK = " Default: the particle-wall [contact] value."
-WALL_MATERIAL_KEYS = {
-    "kn": Key("float", "N/m", range=POSITIVE,
-              doc="linear: the wall's normal stiffness." + _FALLBACK),
-    "kt": Key("float", "N/m", range=NONNEGATIVE,
-              doc="linear: the wall's tangential stiffness." + _FALLBACK),
-    "gamma_n": Key("float", "N s/m", range=NONNEGATIVE,
-                   doc="linear: the wall's normal dashpot." + _FALLBACK),
-    "gamma_t": Key("float", "N s/m", range=NONNEGATIVE,
-                   doc="linear: the wall's tangential dashpot." + _FALLBACK),
-    "young": Key("float", "Pa", range=POSITIVE,
-                 doc="hertz_mindlin: the wall's Young's modulus (the particles keep "
-                     "theirs; a rigid wall: rigid = true)." + _FALLBACK),
-    "poisson": Key("float", range=Range(0.0, 0.5, hi_closed=False),
-                   doc="hertz_mindlin: the wall's Poisson's ratio." + _FALLBACK),
-    "rigid": Key("bool", default=False, doc="hertz_mindlin: true makes the wall rigid (E* and G* "
-                             "from the particles' side alone); excludes young."),
+#: the keys every law lets a wall set for its own material
+_SHARED_WALL_KEYS = {
     "mu": Key("float", range=NONNEGATIVE,
               doc="Friction coefficient between the wall and particles." + _FALLBACK),
     "restitution": Key("float", range=UNIT_OPEN_CLOSED,
@@ -81,6 +61,27 @@ WALL_MATERIAL_KEYS = {
                    doc="Rolling-friction coefficient between the wall and particles."
                        + _FALLBACK),
 }
+
+
+def _wall_keys():
+    """The keys a [[walls]] table may set for its own material, by law, and the schema
+    of all of them (a law's own key names the law in its doc)."""
+    by_law, keys = {}, {}
+    for name, cls in LAWS.items():
+        own = cls.wall_keys()
+        by_law[name] = (*own, *_SHARED_WALL_KEYS)
+        for key, spec in own.items():
+            if key in keys:  # another law's key of the same name: name both laws
+                keys[key] = replace(keys[key], doc=keys[key].doc.replace(":", f", {name}:", 1))
+            else:
+                fallback = "" if spec.type == "bool" else _FALLBACK
+                keys[key] = replace(spec, doc=f"{name}: {spec.doc}{fallback}")
+    return by_law, {**keys, **_SHARED_WALL_KEYS}
+
+
+#: WALL_KEYS: the keys a [[walls]] table may set for its own material, by law;
+#: WALL_MATERIAL_KEYS: their schema
+WALL_KEYS, WALL_MATERIAL_KEYS = _wall_keys()
 
 
 def rolling_spec(table):
@@ -225,24 +226,10 @@ def _check_walls(ctx, scene, law):
 # --------------------------------------------------------------------------- building
 def _law(table, where, ctx, **own):
     """The law of a [contact] table, with a wall's own keys replacing its values."""
-    from ..contact.laws import law_from_spec
-
-    c = {**table, **{k: v for k, v in own.items() if v is not None}}
-    if c["law"] == "linear":
-        spec = {k: c[k] for k in ("kn", "kt", "mu", "gamma_n", "gamma_t", "restitution")}
-    else:
-        wall_young = math.inf if c.get("rigid") else own.get("young") or table["young"]
-        wall_nu = own.get("poisson") if own.get("poisson") is not None else table["poisson"]
-        spec = {"young": [table["young"], wall_young],
-                "poisson": [table["poisson"], wall_nu],
-                "restitution": c["restitution"], "mu": c["mu"]}
-    if c.get("limit_damping"):
-        spec["limit_damping"] = True
-    roll = rolling_spec(c)
-    if roll is not None:
-        spec["rolling"] = roll
     try:
-        return law_from_spec({"law": _LAW_NAMES[c["law"]], **spec})
+        return law_class(table["law"]).from_table(
+            table, own, rolling=rolling_spec({**table, **{k: v for k, v in own.items()
+                                                         if v is not None}}))
     except ValueError as exc:
         ctx.fail(str(exc), where)
 

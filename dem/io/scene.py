@@ -75,6 +75,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..contact.laws import contact_keys
 from ..limits import PARTICLES, LimitError
 from ..limits import check_particle_scales
 from .packing import (
@@ -88,7 +89,6 @@ from .schema import (
     NONNEGATIVE,
     POSITIVE,
     REQUIRED,
-    UNIT_OPEN_CLOSED,
     Key,
     Range,
     SceneError,
@@ -230,28 +230,7 @@ SCHEMA = {
                        required=True, variant="law", keys={
         "pair": Key("pair", doc="The two groups, e.g. [\"sand\", \"walls\"]; required "
                                 "in an array of [[contact]] tables; default: every pair."),
-        "law": Key("str", default=REQUIRED, choices=("linear", "hertz_mindlin"),
-                   doc="Contact law."),
-        "kn": Key("float", "N/m", default=REQUIRED, range=POSITIVE, only=("linear",),
-                  doc="Normal stiffness."),
-        "kt": Key("float", "N/m", default=0.0, range=NONNEGATIVE, only=("linear",),
-                  doc="Tangential stiffness."),
-        "gamma_n": Key("float", "N s/m", default=0.0, range=NONNEGATIVE,
-                       only=("linear",), doc="Normal dashpot coefficient."),
-        "gamma_t": Key("float", "N s/m", default=0.0, range=NONNEGATIVE,
-                       only=("linear",), doc="Tangential dashpot coefficient."),
-        "young": Key("float", "Pa", default=REQUIRED, range=POSITIVE,
-                     only=("hertz_mindlin",), doc="Young's modulus."),
-        "poisson": Key("float", default=REQUIRED, only=("hertz_mindlin",),
-                       range=Range(0.0, 0.5, hi_closed=False), doc="Poisson's ratio."),
-        "mu": Key("float", default=REQUIRED, range=NONNEGATIVE,
-                  doc="Coulomb friction coefficient."),
-        "restitution": Key("float", default=1.0, range=UNIT_OPEN_CLOSED,
-                           doc="Normal coefficient of restitution."),
-        "limit_damping": Key("bool", default=False,
-                             doc="Clip the normal force at zero (the dashpot never pulls), "
-                                 "the damping remapped so that a collision still rebounds "
-                                 "with the restitution (LAMMPS' limit_damping)."),
+        **contact_keys(),
         **ROLLING_KEYS,
     }),
     "output": Section(doc="HDF5 output written by `dem run`.", keys={

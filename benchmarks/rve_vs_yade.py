@@ -43,7 +43,10 @@ blocking ``O.run(n, True)`` calls, the way FEMxDEM's RVEs are stepped
 (``speedup_rve_call_blocking``: YADE's call as FEMxDEM makes it, its polling floor
 included). Plain stepping of the same RVE, particle-steps per second of our loop over
 YADE's ``O.step()`` loop: ``speedup_stepping``. YADE runs on one thread (``-j 1``),
-ours too.
+ours too. Our call is ``RVE.apply_strain(deps, tangent=True)``, the stress and the
+tangent from one measuring pass, as a Gauss point asks (before 2026-12-06 it was timed
+as ``apply_strain``, ``stress()`` and ``tangent()``: three passes). With ``DIMS="2 3"``
+the 1,000-sphere RVE is timed too: the same keys ending in ``_3d``.
 
 usage::
 
@@ -179,9 +182,7 @@ def ours_timing(ex, calls):
         r.restore(snap)
         s0 = r.sim.step
         t0 = time.perf_counter()
-        r.apply_strain(deps)
-        r.stress()
-        r.tangent()
+        r.apply_strain(deps, tangent=True)  # stress and tangent, as a Gauss point asks
         times.append(time.perf_counter() - t0)
         steps.append(r.sim.step - s0)
     r.restore(snap)
@@ -550,17 +551,23 @@ def curves(data, dims, axial, exe, seeds):
             data[f"max_rel_deviation_{dim}d"] = None
 
 
-def timing(data, rounds, calls, exe):
-    """Gauss-point calls and stepping of the 2D RVE, rounds of ours and YADE's
-    alternating, into ``data``."""
-    ex = export(2)
+def timing(data, rounds, calls, exe, dims):
+    """Gauss-point calls and stepping of the 2D RVE (and the 3D one with ``dims``),
+    rounds of ours and YADE's alternating, into ``data``: keys ending in ``_3d`` are the
+    3D RVE's."""
+    for dim in dims:
+        _timing(data, rounds, calls, exe, dim, "" if dim == 2 else "_3d")
+
+
+def _timing(data, rounds, calls, exe, dim, tag):
+    ex = export(dim)
     ours_runs, yade_runs = [], []
     for k in range(rounds):
-        ours_runs.append(C.run_worker(__file__, ["timing", calls], threads=1))
+        ours_runs.append(C.run_worker(__file__, ["timing", calls, dim], threads=1))
         if exe is not None:
             yade_runs.append(run_yade(ex, "timing", calls=calls, strain=CALL_STRAIN,
                                       steps=STEPPING_STEPS))
-        print(f"timing round {k + 1}/{rounds} done", flush=True)
+        print(f"{dim}D timing round {k + 1}/{rounds} done", flush=True)
     bad = [r["error"] for r in ours_runs if not r.get("ok")]
     if bad:
         raise RuntimeError("our timing worker failed: " + bad[0])
@@ -581,23 +588,21 @@ def timing(data, rounds, calls, exe):
             yade_particle_steps_per_s_run=C.median([r["particle_steps_per_s_run"]
                                                     for r in yade_runs]),
             yade_runs=yade_runs)
-        data["speedup_rve_call"] = t["yade_call_time"] / t["ours_call_time"]
-        data["speedup_rve_call_blocking"] = (t["yade_call_time_blocking"]
-                                             / t["ours_call_time"])
-        data["speedup_stepping"] = (t["ours_particle_steps_per_s"]
-                                    / t["yade_particle_steps_per_s"])
-        print(f"Gauss-point call: ours {1e3 * t['ours_call_time']:.1f} ms, YADE "
-              f"{1e3 * t['yade_call_time']:.1f} ms (speedup "
-              f"{data['speedup_rve_call']:.2f}), with blocking O.run "
-              f"{1e3 * t['yade_call_time_blocking']:.1f} ms (speedup "
-              f"{data['speedup_rve_call_blocking']:.2f}); stepping ours "
-              f"{t['ours_particle_steps_per_s'] / 1e6:.2f}, YADE "
+        call = data["speedup_rve_call" + tag] = t["yade_call_time"] / t["ours_call_time"]
+        blocking = data["speedup_rve_call_blocking" + tag] = (t["yade_call_time_blocking"]
+                                                              / t["ours_call_time"])
+        stepping = data["speedup_stepping" + tag] = (t["ours_particle_steps_per_s"]
+                                                     / t["yade_particle_steps_per_s"])
+        print(f"{dim}D Gauss-point call: ours {1e3 * t['ours_call_time']:.1f} ms, YADE "
+              f"{1e3 * t['yade_call_time']:.1f} ms (speedup {call:.2f}), with blocking "
+              f"O.run {1e3 * t['yade_call_time_blocking']:.1f} ms (speedup {blocking:.2f});"
+              f" stepping ours {t['ours_particle_steps_per_s'] / 1e6:.2f}, YADE "
               f"{t['yade_particle_steps_per_s'] / 1e6:.2f} M particle-steps/s (speedup "
-              f"{data['speedup_stepping']:.2f})")
+              f"{stepping:.2f})")
     else:
-        data["speedup_rve_call"] = data["speedup_stepping"] = None
-        data["speedup_rve_call_blocking"] = None
-    data["timing"] = t
+        data["speedup_rve_call" + tag] = data["speedup_stepping" + tag] = None
+        data["speedup_rve_call_blocking" + tag] = None
+    data["timing" + tag] = t
 
 
 def main():
@@ -632,7 +637,7 @@ def main():
         data["measured_curves"] = stamp
     if part in ("all", "timing"):
         data["settings"].update(rounds=rounds, calls=calls)
-        timing(data, rounds, calls, exe)
+        timing(data, rounds, calls, exe, dims)
         data["measured_timing"] = stamp
     data["loadavg_end"] = C.loadavg()
     data.setdefault("status", "ok")
@@ -643,7 +648,7 @@ def main():
 
 def worker(args):
     if args[0] == "timing":
-        C.emit_result(ours_timing(export(2), int(args[1])))
+        C.emit_result(ours_timing(export(int(args[2])), int(args[1])))
 
 
 if __name__ == "__main__":

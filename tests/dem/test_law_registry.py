@@ -74,6 +74,21 @@ def test_a_table_builds_the_law_its_file_names():
         laws.law_class("glue")
 
 
+def test_a_row_that_differs_from_n_params_is_refused():
+    """The kernels index a contact's parameters by the class's n_params: a row of
+    another length is refused when the model builds its table."""
+
+    class Short(dem.LinearSpring):
+        n_params = 6
+
+    model = dem.ContactModel(Short(kn=1e5, kt=4e4, mu=0.3))
+    with pytest.raises(TypeError, match=r"Short.row\(\) gives 7 numbers, but the class "
+                                        r"states n_params = 6"):
+        model.table("pp", 1)
+    assert dem.ContactModel(dem.LinearSpring(kn=1e5, kt=4e4, mu=0.3)).table(
+        "pp", 1).shape == (1, 1, 7)
+
+
 class _Toy(Law):
     """A law that only exists here: a linear spring with no friction."""
 

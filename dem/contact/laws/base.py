@@ -28,7 +28,6 @@ import math
 
 import numpy as np
 
-from ..rolling import N_HIST as N_HIST_ROLLING
 from ..rolling import as_rolling
 
 #: the registered law classes by name, in the order of their codes
@@ -145,11 +144,6 @@ class Law:
         if self.rolling is not None:
             self._args["rolling"] = self.rolling.spec()
 
-    def history_width(self):
-        """Columns of a contact's history row: the law's own, and the rolling state
-        after them when the law has rolling resistance."""
-        return self.n_hist + (N_HIST_ROLLING if self.rolling is not None else 0)
-
     def row(self):
         """The pair-parameter row the kernels read (float64 array of ``n_params``)."""
         raise NotImplementedError
@@ -157,10 +151,14 @@ class Law:
     def full_row(self, rolling):
         """:meth:`row`, followed by the rolling parameters when ``rolling`` (zeros for a
         law without rolling resistance in a scene where others have it)."""
+        row = np.asarray(self.row(), np.float64)
+        if row.shape != (self.n_params,):
+            raise TypeError(f"{type(self).__name__}.row() gives {row.size} numbers, but the "
+                            f"class states n_params = {self.n_params}")
         if not rolling:
-            return self.row()
+            return row
         extra = self.rolling.row() if self.rolling is not None else [0.0] * 5
-        return np.concatenate([self.row(), extra])
+        return np.concatenate([row, extra])
 
     def critical_stiffness(self, r_ref):
         """Largest normal stiffness [N/m] a contact of reference radius ``r_ref`` reaches."""

@@ -14,7 +14,7 @@ from numba import prange
 
 from .._jit import kernel
 from ..status import NONFINITE, OK, REBUILD
-from .materials import P_ALPHA, P_C, P_KAPPA, P_MODEL, P_SCRIT, PMB_CODE
+from .materials import P_ALPHA, P_C, P_CORR, P_KAPPA, P_MODEL, P_SCRIT, PMB_CODE
 
 
 @kernel(inline=True)
@@ -43,10 +43,12 @@ def bond_pass(pos, start, nbr, length, omega, vol, qw, pw, params, broken, theta
     """Break over-stretched bonds, then each point's dilation and deviatoric moment (LPS).
 
     ``theta_i = sum_j w |xi| e V_j q_j`` and ``S_i = sum_j w e^d |xi| V_j``, with the
-    per-bond weights ``q = d / m_i`` (or its surface-corrected value) and ``p = 1 / m_i``
-    (``S_i`` is zero without the correction). Both directions of a bond see the same
-    stretch bit for bit, so they break in the same pass. Modified in place: ``broken``,
-    ``theta_out``, ``sdev_out``.
+    per-bond weights ``q = d / m_i`` (or its surface-corrected value) and ``p = 1 / m_i``.
+    Without the correction ``S_i`` is zero wherever every bond of the point is intact
+    (``m_i`` sums the whole family): it is set to 0 there without a second pass over
+    the bonds, and summed only for points with a broken bond or corrected weights. Both
+    directions of a bond see the same stretch bit for bit, so they break in the same
+    pass. Modified in place: ``broken``, ``theta_out``, ``sdev_out``.
     """
     n, d = pos.shape
     s_crit = params[P_SCRIT]
@@ -66,8 +68,18 @@ def bond_pass(pos, start, nbr, length, omega, vol, qw, pw, params, broken, theta
         theta_out[i] = th
     if not lps:
         return
+    corrected = params[P_CORR] != 0.0
     for i in prange(n):
         sd = 0.0
+        whole = not corrected
+        if whole:
+            for b in range(start[i], start[i + 1]):
+                if broken[b]:
+                    whole = False
+                    break
+        if whole:
+            sdev_out[i] = 0.0
+            continue
         for b in range(start[i], start[i + 1]):
             if broken[b]:
                 continue

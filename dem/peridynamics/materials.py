@@ -42,8 +42,9 @@ import numpy as np
 
 #: model codes the kernels branch on
 LPS_CODE, PMB_CODE = 0, 1
-#: layout of the parameter vector handed to the kernels
-P_MODEL, P_KAPPA, P_ALPHA, P_C, P_SCRIT, P_NPARAMS = 0, 1, 2, 3, 4, 5
+#: layout of the parameter vector handed to the kernels (``P_CORR``: 1 when the LPS
+#: dilation is surface-corrected, else 0)
+P_MODEL, P_KAPPA, P_ALPHA, P_C, P_SCRIT, P_CORR, P_NPARAMS = 0, 1, 2, 3, 4, 5, 6
 
 PLANES = ("strain", "stress")
 
@@ -107,6 +108,7 @@ class _Material:
         p[P_ALPHA] = (15.0 if dim == 3 else 8.0) * self.mu
         p[P_C] = 2.0 * dim**2 * self.kappa(dim) / s_bulk if s_bulk > 0.0 else 0.0
         p[P_SCRIT] = self.critical_stretch(dim, horizon)
+        p[P_CORR] = 1.0 if getattr(self, "surface_correction", False) else 0.0
         return p
 
     def influence(self, length, horizon):

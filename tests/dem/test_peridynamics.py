@@ -82,6 +82,37 @@ def test_force_is_minus_the_energy_gradient(name):
         assert force[i, k] == pytest.approx(-(up - down) / (2 * h), rel=1e-5)
 
 
+def test_lps_deviatoric_moment_is_zero_where_the_family_is_whole():
+    """Uncorrected LPS: S_i = sum_j w (e - theta |xi| / d) |xi| V_j vanishes wherever every
+    bond of point i is intact, so the bond pass sets it to 0 there instead of summing;
+    where a bond is broken it is summed, exactly as when every point is summed."""
+    from dem.peridynamics.kernels import bond_pass
+    from dem.peridynamics.materials import P_CORR
+
+    sim = plate([0, 0], [0.08, 0.06], MATERIALS["lps-strain"])
+    f = sim.family
+    rng = np.random.default_rng(5)
+    pos = sim.x0 + 1e-3 * DX * rng.standard_normal(sim.x0.shape)
+    broken = np.zeros_like(f.broken)
+    broken[rng.choice(broken.size, 40, replace=False)] = 1
+    broken[f.twin[broken.astype(bool)]] = 1  # a bond breaks in both directions
+    out = {}
+    for flag in (0.0, 1.0):  # 1: sum every point, as for corrected weights
+        params = sim.params.copy()
+        params[P_CORR] = flag
+        theta, sdev = np.zeros(len(pos)), np.full(len(pos), np.nan)
+        bond_pass(pos, f.start, f.nbr, f.length, sim.omega, sim.vol, sim.qw, sim.pw, params,
+                  broken.copy(), theta, sdev)
+        out[flag] = theta, sdev
+    cut = np.bincount(f.owner(), broken, minlength=len(pos)) > 0
+    assert 0 < cut.sum() < len(pos)
+    np.testing.assert_array_equal(out[0.0][0], out[1.0][0])
+    np.testing.assert_array_equal(out[0.0][1][cut], out[1.0][1][cut])
+    assert np.all(out[0.0][1][~cut] == 0.0)
+    scale = np.abs(out[1.0][1][cut]).max()
+    assert scale > 0.0 and np.abs(out[1.0][1][~cut]).max() < 1e-12 * scale
+
+
 def test_momentum_is_conserved_while_bonds_break():
     mat = pd.LPS(E=E, nu=0.3, density=RHO, s_crit=2e-3, surface_correction=True)
     sim = plate([0, 0], [0.1, 0.08], mat, cut=pd.crack([0.0, 0.04], [0.04, 0.04]))

@@ -78,6 +78,7 @@ bench: $(STAMP)
 	DIM=3 $(BIN)/python benchmarks/rve_size_accuracy.py
 	$(BIN)/python benchmarks/rve_step_limit.py
 	$(BIN)/python benchmarks/hmm_vs_femxdem.py
+	DIM=3 $(BIN)/python benchmarks/hmm_vs_femxdem.py
 	$(BIN)/python benchmarks/hmm_tangent_adaptive.py
 	$(BIN)/python benchmarks/pd_lammps.py
 	$(BIN)/python benchmarks/pd_kirsch.py

@@ -1,4 +1,5 @@
-"""The multiscale solver against YADE's FEMxDEM on the same scaled biaxial problem.
+"""The multiscale solver against YADE's FEMxDEM on the same scaled biaxial (2D) and
+triaxial (3D) problems.
 
 FEMxDEM (Guo & Zhao's FEM x DEM coupling: Escript's finite elements with a YADE
 periodic RVE at every Gauss point, the ``yade.FEMxDEM`` module of Debian's yade
@@ -25,6 +26,26 @@ the ancestor of ``hmm``. Both solve the same problem here:
   ``poisson = kt / kn``, ``frictionAngle = atan(mu)``; 2D disks are YADE spheres in
   one plane of a periodic cell with ``blockedDOFs = "zXY"`` and our disks' masses
   and moments of inertia.
+
+``DIM=3`` runs the 3D part, the scaled triaxial test of FEMxDEM's
+``triaxialRough.py`` example (``msFEM3D.MultiScale``, ``simDEM.shear3D``):
+
+* a 5 x 10 x 5 cm cuboid, its axis along y (FEMxDEM's example runs along z; the
+  driver here turns it), 20-node hexahedra with 2 x 2 x 2 Gauss points (Escript's
+  ``Brick(order=2, integrationOrder=2)``, our ``hex20`` with ``integration =
+  "reduced"``), 1 x 1 x 2 elements (16 Gauss points) by default;
+* rough platens as in the example: the bottom held in every component, the top
+  held in x and z with ``u_y`` prescribed in load steps of 1e-3 axial strain; the
+  100 kPa confining pressure on the four sides;
+* every Gauss point starts from the 1,000-sphere packing of ``rve_vs_yade.py``
+  (kn = 1e5 N/m, kt = 5e4 N/m, friction 0.5), consolidated to 100 kPa by each engine
+  as in 2D.
+
+The shipped ``msFEM3D`` calls ``shear``, ``getStressAndTangent``, ``getVoidRatio``,
+``avgRotation`` and ``getFabric``, which its ``simDEM`` names with a ``3D`` suffix
+(``shear3D`` ...); the driver binds those names in ``msFEM3D`` and changes nothing
+else. Its results go to ``benchmarks/results/hmm_vs_femxdem_3d.json`` and
+``docs/figures/hmm_vs_femxdem_3d.png``, with the same keys.
 
 Ours is ``hmm.run.run_problem`` on a validated problem (micro model ``dem``); the
 peer is a driver script this file writes (:data:`FEMXDEM_DRIVER`, our own text) that
@@ -89,11 +110,11 @@ usage::
     python benchmarks/hmm_vs_femxdem.py   # writes benchmarks/results/hmm_vs_femxdem.json
                                           # and docs/figures/hmm_vs_femxdem.png
 
-environment: SIZES ("2x4:50 4x8:10": mesh and load steps; a size without steps
-takes STEPS, 3), PEER_STEPS (the same; fewer keep a slow peer within the time
-budget: the ratios are per step and per call), PROCS ("2"), KINEMATICS ("finite",
-ours), YADE (the YADE executable, default ``yade``; FEMxDEM runs
-under the Python of its launch script); PUBLISHED ("8x16:100" runs ours alone on the
+environment: DIM ("2"; "3": the triaxial part), SIZES ("2x4:50 4x8:10" in 2D,
+"1x1x2:40" in 3D: mesh and load steps; a size without steps takes STEPS, 3),
+PEER_STEPS (the same; fewer keep a slow peer within the time budget: the ratios are
+per step and per call), PROCS ("2"), KINEMATICS ("finite", ours), YADE (the YADE
+executable, default ``yade``; FEMxDEM runs under the Python of its launch script); PUBLISHED ("8x16:100" runs ours alone on the
 published problem size, FEMxDEM's RVE call then relaxed (PUBLISHED_RUNS, "fixed
 relax"), on PUBLISHED_PROCS (2) processes, and adds it to the JSON). Without YADE or
 Escript the peer is skipped,
@@ -101,6 +122,7 @@ saying so on stdout and in the JSON, and our side still runs.
 """
 
 import json
+import math
 import os
 import re
 import shutil
@@ -113,16 +135,25 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common as C
 import rve_vs_yade as RV
 
-OUT = C.RESULTS / "hmm_vs_femxdem.json"
-FIGURE = C.REPO / "docs" / "figures" / "hmm_vs_femxdem.png"
+DIM = int(os.environ.get("DIM", "2"))
+if DIM not in (2, 3):
+    raise SystemExit(f"DIM must be 2 or 3, not {DIM}")
+_TAG = "" if DIM == 2 else "_3d"
+OUT = C.RESULTS / f"hmm_vs_femxdem{_TAG}.json"
+FIGURE = C.REPO / "docs" / "figures" / f"hmm_vs_femxdem{_TAG}.png"
 SCRATCH = C.WORK / "hmm_vs_femxdem"
-PACKING = SCRATCH / "packing_2d.h5"  # ours, consolidated (RVE.save)
-EXPORT = SCRATCH / "export.json"  # the exported packing, for YADE
-PEER_DIR = SCRATCH / "femxdem"  # FEMxDEM's working directory (0.yade.gz, yadeimport.py)
+PACKING = SCRATCH / f"packing_{DIM}d.h5"  # ours, consolidated (RVE.save)
+EXPORT = SCRATCH / f"export_{DIM}d.json"  # the exported packing, for YADE
+PEER_DIR = SCRATCH / f"femxdem_{DIM}d"  # FEMxDEM's working directory (0.yade.gz, ...)
 VENV_BIN = Path(sys.executable).parent
 
 P0 = RV.P0  # [Pa] consolidation and confining pressure
-SIZE = (0.05, 0.1)  # [m] the sample of FEMxDEM's biaxial example
+#: [m] the samples of FEMxDEM's biaxial example (2D) and of its triaxial example (3D,
+#: its axis along y here as in examples/triaxial_3d.toml; FEMxDEM's runs along z)
+SIZE = (0.05, 0.1) if DIM == 2 else (0.05, 0.1, 0.05)
+ELEMENT = "quad8" if DIM == 2 else "hex20"
+#: meshes and load steps run by default
+DEFAULT_SIZES = "2x4:50 4x8:10" if DIM == 2 else "1x1x2:40"
 STRAIN_STEP = 1e-3  # axial strain per load step
 YADE_THICKNESS = 1.0  # [m] YADE's cell: stress per (area x 1 m) = ours per area
 RTOL = 1e-2  # FEMxDEM's Newton tolerance (its example's); ours both tolerances
@@ -146,7 +177,7 @@ def prepare_ours():
     if PACKING.exists() and EXPORT.exists():
         r = rve.RVE.load_file(PACKING)
     else:
-        ex = RV.export(2)  # positions etc. of the packing at the working friction
+        ex = RV.export(DIM)  # positions etc. of the packing at the working friction
         r = RV.fresh_rve(ex)
         r.consolidate(P0)
         SCRATCH.mkdir(parents=True, exist_ok=True)
@@ -157,21 +188,35 @@ def prepare_ours():
             "unbalanced": res["unbalanced"], "dt": r.sim.dt, "particles": r.bodies.n}
 
 
+def supports(steps):
+    """The ``[[dirichlet]]`` and ``[[pressure]]`` rows: 2D, smooth platens, ``u_x = 0``
+    on the left and the pressure on the right; 3D, rough platens (every component
+    held, the top's ``u_y`` prescribed) and the pressure on the four sides."""
+    top = -steps * STRAIN_STEP * SIZE[1]
+    if DIM == 2:
+        return ([{"boundary": "bottom", "component": "y", "value": 0.0},
+                 {"boundary": "left", "component": "x", "value": 0.0},
+                 {"boundary": "top", "component": "y", "value": top}],
+                [{"boundary": "right", "value": P0}])
+    rows = [{"boundary": b, "component": c, "value": top if (b, c) == ("top", "y") else 0.0}
+            for b in ("bottom", "top") for c in "xyz"]
+    return rows, [{"boundary": b, "value": P0} for b in ("left", "right", "front", "back")]
+
+
 def problem(cells, steps, out_dir, relax=True, check_residual=True):
-    """The validated biaxial problem of ``cells`` = (nx, ny) elements (``relax``
-    False: RVE calls without relaxation, FEMxDEM's algorithm; ``check_residual``
-    False: Newton converges on the correction alone, FEMxDEM's criterion)."""
+    """The validated biaxial (2D) or triaxial (3D) problem of ``cells`` elements
+    (``relax`` False: RVE calls without relaxation, FEMxDEM's algorithm;
+    ``check_residual`` False: Newton converges on the correction alone, FEMxDEM's
+    criterion)."""
     from hmm.problem import validate_problem
 
     micro = dict(MICRO, relax=bool(relax))  # false: the loading steps, unrelaxed
+    dirichlet, pressure = supports(steps)
     return validate_problem({
-        "mesh": {"dim": 2, "element": "quad8", "size": list(SIZE), "cells": list(cells)},
-        "dirichlet": [
-            {"boundary": "bottom", "component": "y", "value": 0.0},
-            {"boundary": "left", "component": "x", "value": 0.0},
-            {"boundary": "top", "component": "y", "value": -steps * STRAIN_STEP * SIZE[1]},
-        ],
-        "pressure": [{"boundary": "right", "value": P0}],
+        "mesh": {"dim": DIM, "element": ELEMENT, "integration": "reduced",
+                 "size": list(SIZE), "cells": list(cells)},
+        "dirichlet": dirichlet,
+        "pressure": pressure,
         "load": {"steps": steps},
         "micro": {"model": "dem", "packing": str(PACKING), **micro},
         "solver": dict(SOLVER, check_residual=bool(check_residual),
@@ -189,7 +234,7 @@ def run_ours(cells, steps, relax=True, check_residual=False):
     from hmm import coupling, farm
     from hmm.run import run_problem
 
-    out_dir = SCRATCH / f"ours_{cells[0]}x{cells[1]}{'' if relax else '_fixed'}"
+    out_dir = SCRATCH / f"ours_{_name(cells)}{'' if relax else '_fixed'}"
     prob = problem(cells, steps, out_dir, relax, check_residual)
     trials, step_walls = [], []
     for cls in (farm.SerialFarm, farm.MPIFarm):  # rank 0 drives the farm via trial()
@@ -235,7 +280,7 @@ def run_ours(cells, steps, relax=True, check_residual=False):
 def ours(cells, steps, procs, relax=True, check_residual=False):
     """Run :func:`run_ours` in a fresh process (under mpiexec for ``procs`` > 1)."""
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", "ours",
-           f"{cells[0]}x{cells[1]}", str(steps), "relax" if relax else "fixed",
+           _name(cells), str(steps), "relax" if relax else "fixed",
            "residual" if check_residual else "correction"]
     if procs > 1:
         cmd = [str(VENV_BIN / "mpiexec"), "-n", str(procs), sys.executable, "-m",
@@ -286,22 +331,36 @@ exec(open(os.environ["HVF_DRIVE"]).read())
 st = utils.getStressAndTangent(symmetry=True)
 O.save(os.environ["HVF_SCENE"])
 with open(os.environ["HVF_OUT"], "w") as fh:
-    json.dump({"stress": [[st[0][i, j] for j in range(2)] for i in range(2)],
+    d = json.load(open(os.environ["RVE_YADE_IN"]))["dim"]
+    json.dump({"stress": [[st[0][i, j] for j in range(d)] for i in range(d)],
                "unbalanced": utils.unbalancedForce(), "n_contacts": len(contacts()[0]),
                "dt": O.dt, "bodies": len(O.bodies),
                "yade_version": result.get("yade_version")}, fh)
 '''
 
 #: the FEMxDEM driver (run by Debian's python3 in PEER_DIR): the biaxial problem on
-#: msFEM2D.MultiScale, settings from the JSON file named by HVF_CONFIG
+#: msFEM2D.MultiScale or the triaxial one on msFEM3D.MultiScale, settings from the
+#: JSON file named by HVF_CONFIG
 FEMXDEM_DRIVER = r'''
 import json, os, sys, time
 import numpy as np
 
 cfg = json.load(open(os.environ["HVF_CONFIG"]))
-import msFEM2D  # Escript and simDEM (which imports YADE through yadeimport)
+dim = len(cfg["size"])
 import esys.escript as es
-from esys.finley import Rectangle
+from esys.finley import Brick, Rectangle
+
+if dim == 2:
+    import msFEM2D as ms  # Escript and simDEM (which imports YADE through yadeimport)
+    options = {"usePert": False}
+else:
+    import msFEM3D as ms
+    import simDEM
+    # msFEM3D calls shear, getStressAndTangent, ... which simDEM names with a 3D suffix
+    for name in ("shear", "getStressAndTangent", "getVoidRatio", "avgRotation",
+                 "getFabric"):
+        setattr(ms, name, getattr(simDEM, name + "3D"))
+    options = {}
 
 
 class InProcessPool:
@@ -315,14 +374,19 @@ class InProcessPool:
 
 
 if cfg["processes"] == 1:
-    msFEM2D.get_pool = lambda mpi=False, threads=1: InProcessPool()
-lx, ly = cfg["size"]
-nx, ny = cfg["cells"]
-dom = Rectangle(l0=lx, l1=ly, n0=nx, n1=ny, order=2, integrationOrder=2)
+    ms.get_pool = lambda mpi=False, threads=1: InProcessPool()
+if dim == 2:
+    lx, ly = cfg["size"]
+    nx, ny = cfg["cells"]
+    dom = Rectangle(l0=lx, l1=ly, n0=nx, n1=ny, order=2, integrationOrder=2)
+else:  # order 2: 20-node hexahedra; integrationOrder 2: 2 x 2 x 2 Gauss points
+    lx, ly, lz = cfg["size"]
+    nx, ny, nz = cfg["cells"]
+    dom = Brick(l0=lx, l1=ly, l2=lz, n0=nx, n1=ny, n2=nz, order=2, integrationOrder=2)
 ng = es.Function(dom).getX().getNumberOfDataPoints()
 t0 = time.perf_counter()
-prob = msFEM2D.MultiScale(domain=dom, ng=ng, np=cfg["processes"], rtol=cfg["rtol"],
-                          usePert=False, verbose=False)
+prob = ms.MultiScale(domain=dom, ng=ng, np=cfg["processes"], rtol=cfg["rtol"],
+                     verbose=False, **options)
 setup = time.perf_counter() - t0
 
 calls = []
@@ -330,8 +394,8 @@ dem_stage = prob.applyStrain_getStressTangentDEM
 
 
 def timed_stage(st=es.Data()):
-    grad = np.array(st.toListOfTuples()).reshape(-1, 4)
-    steps = [int(max(1e5 * np.max(np.abs(g)), 2)) for g in grad]  # as shear2D
+    grad = np.array(st.toListOfTuples()).reshape(-1, dim * dim)
+    steps = [int(max(1e5 * np.max(np.abs(g)), 2)) for g in grad]  # as shear2D/3D
     t = time.perf_counter()
     out = dem_stage(st=st)
     calls.append({"wall": time.perf_counter() - t, "steps": steps})
@@ -341,10 +405,17 @@ def timed_stage(st=es.Data()):
 prob.applyStrain_getStressTangentDEM = timed_stage
 x = dom.getX()
 bx = es.FunctionOnBoundary(dom).getX()
-mask = es.whereZero(x[1]) * [0, 1] + es.whereZero(x[1] - ly) * [0, 1] \
-    + es.whereZero(x[0]) * [1, 0]
-value = es.whereZero(x[1] - ly) * [0, -cfg["strain_step"] * ly]
-traction = es.whereZero(bx[0] - lx) * [-cfg["p0"], 0]  # pressure on the right side
+p0 = cfg["p0"]
+if dim == 2:  # smooth platens, u_x = 0 on the left, the pressure on the right
+    mask = es.whereZero(x[1]) * [0, 1] + es.whereZero(x[1] - ly) * [0, 1] \
+        + es.whereZero(x[0]) * [1, 0]
+    value = es.whereZero(x[1] - ly) * [0, -cfg["strain_step"] * ly]
+    traction = es.whereZero(bx[0] - lx) * [-p0, 0]
+else:  # rough platens (as triaxialRough), the pressure on the four sides
+    mask = es.whereZero(x[1]) * [1, 1, 1] + es.whereZero(x[1] - ly) * [1, 1, 1]
+    value = es.whereZero(x[1] - ly) * [0, -cfg["strain_step"] * ly, 0]
+    traction = es.whereZero(bx[0]) * [p0, 0, 0] + es.whereZero(bx[0] - lx) * [-p0, 0, 0] \
+        + es.whereZero(bx[2]) * [0, 0, p0] + es.whereZero(bx[2] - lz) * [0, 0, -p0]
 
 
 def mean_stress():
@@ -446,7 +517,7 @@ def peer(paths, cells, steps, procs):
     """One FEMxDEM run of the problem."""
     cfg = {"size": list(SIZE), "cells": list(cells), "steps": steps, "processes": procs,
            "rtol": RTOL, "iter_max": ITER_MAX, "strain_step": STRAIN_STEP, "p0": P0}
-    path = PEER_DIR / f"config_{cells[0]}x{cells[1]}_{procs}.json"
+    path = PEER_DIR / f"config_{_name(cells)}_{procs}.json"
     path.write_text(json.dumps(cfg))
     env = peer_env(paths, {"HVF_CONFIG": str(path)})
     return _result([paths["python"], "femxdem_driver.py"], env, PEER_DIR)
@@ -534,7 +605,7 @@ SUMMARY = ("speedup", "speedup_rve_call", "speedup_no_relaxation",
 def measure(size, procs, steps, peer_steps, paths, runs):
     """Our runs and the peer's on one mesh, for each process count, interleaved."""
     cells = _size(size)
-    row = {"cells": list(cells), "gauss_points": 4 * cells[0] * cells[1],
+    row = {"cells": list(cells), "gauss_points": 2 ** DIM * math.prod(cells),
            "processes": procs, "load_steps": steps, "kinematics": KINEMATICS,
            "max_axial_strain": STRAIN_STEP * steps, "by_processes": {}, "curves": {}}
     for p in procs:
@@ -613,8 +684,14 @@ def _rounded(stress):
 
 
 def _size(s):
-    nx, ny = (int(v) for v in s.lower().split("x"))
-    return nx, ny
+    cells = tuple(int(v) for v in s.lower().split("x"))
+    if len(cells) != DIM:
+        raise SystemExit(f"a {DIM}D mesh size has {DIM} numbers, not {s!r}")
+    return cells
+
+
+def _name(cells):
+    return "x".join(str(n) for n in cells)
 
 
 def published(spec, procs, save):
@@ -653,6 +730,8 @@ def main():
     """``PUBLISHED="8x16:100"`` runs :func:`published` only (``PUBLISHED_PROCS``, 2)
     and adds it to the JSON of an earlier comparison; otherwise the comparison."""
     if os.environ.get("PUBLISHED"):
+        if DIM != 2:
+            raise SystemExit("PUBLISHED is the 2D biaxial example's size: DIM=2 only")
         data = json.loads(OUT.read_text()) if OUT.exists() else {}
         prep = C.run_worker(__file__, ["prepare"], threads=1)
         if not prep.get("ok"):
@@ -666,19 +745,21 @@ def main():
         return
     default_steps = C.env_int("STEPS", 3)
     sizes = {}
-    for item in C.env_list("SIZES", "2x4:50 4x8:10"):
+    for item in C.env_list("SIZES", DEFAULT_SIZES):
         size, _, n = item.partition(":")
         sizes[size] = int(n) if n else default_steps
     peer_cap = os.environ.get("PEER_STEPS")
     procs = [int(p) for p in C.env_list("PROCS", "2")]
-    data = {"benchmark": "hmm_vs_femxdem", "date": C.now(), "machine": C.machine_info(),
+    data = {"benchmark": OUT.stem, "date": C.now(), "machine": C.machine_info(),
             "versions": C.our_versions(),
             "kinematics": KINEMATICS,
-            "settings": {"sample": list(SIZE), "element": "quad8 (8-node, 2x2 Gauss)",
+            "settings": {"sample": list(SIZE), "dim": DIM,
+                         "element": f"{ELEMENT} ({2 ** DIM} Gauss points)",
+                         "platens": "smooth" if DIM == 2 else "rough",
                          "p0": P0, "strain_step": STRAIN_STEP, "steps": sizes,
                          "peer_steps": peer_cap, "processes": procs, "rtol": RTOL,
                          "femxdem_iter_max": ITER_MAX, "micro": MICRO, "solver": SOLVER,
-                         "yade_thickness": YADE_THICKNESS, "packing": RV.SETUP[2],
+                         "yade_thickness": YADE_THICKNESS, "packing": RV.SETUP[DIM],
                          "radius": list(RV.RADIUS), "density": RV.DENSITY},
             "sizes": {}}
     if peer_cap is not None:

@@ -136,25 +136,38 @@ run {steps}
 """
 
 
-def lammps(exe):
-    text = LAMMPS_INPUT.format(skin=SPACING, a=SPACING, R=RADIUS, H=HEIGHT, c=C,
-                               horizon=HORIZON, s00=S00, rho=RHO, vol=SPACING**3,
-                               rate=RATE, steps=STEPS, dt=DT)
-    times, out = [], ""
+def run_lammps(exe, text, steps, last_step, volume):
+    """Run LAMMPS ``REPEAT`` times on the input ``text`` (thermo ``step ke c_dsum``):
+    the loop times [s] of its last ``run``, which must be of ``steps`` steps, its atom
+    count, and the kinetic energy [J] and mean damage of the thermo line at
+    ``last_step``. ``atom_style peri`` keeps the density as the mass, so its kinetic
+    energy is per volume: it is multiplied by each point's ``volume``."""
+    times, out, loop = [], "", None
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "in.pd"
         path.write_text(text)
         for _ in range(REPEAT):
             out = subprocess.run([exe, "-in", str(path), "-log", "none"], cwd=tmp,
                                  capture_output=True, text=True, check=True).stdout
-            loop = re.search(r"Loop time of ([0-9.eE+-]+) on (\d+) procs for (\d+) steps "
-                             r"with (\d+) atoms", out)
-            times.append(float(loop.group(1)) / STEPS)
-    last = [ln.split() for ln in out.splitlines() if ln.strip().startswith(str(STEPS))]
+            loop = re.findall(r"Loop time of ([0-9.eE+-]+) on \d+ procs for (\d+) steps "
+                              r"with (\d+) atoms", out)[-1]
+            if int(loop[1]) != steps:
+                raise RuntimeError(f"LAMMPS timed {loop[1]} steps, not {steps}")
+            times.append(float(loop[0]))
+    last = [ln.split() for ln in out.splitlines()
+            if ln.strip().startswith(str(last_step) + " ")]
     _, ke, dmg = last[-1][:3]
-    # atom_style peri keeps the density as the mass: its kinetic energy is per volume
-    return {"points": int(loop.group(4)), "s_per_step": statistics.median(times),
-            "kinetic_energy": float(ke) * SPACING**3, "mean_damage": float(dmg)}
+    return {"points": int(loop[2]), "runs_s": times, "kinetic_energy": float(ke) * volume,
+            "mean_damage": float(dmg)}
+
+
+def lammps(exe):
+    text = LAMMPS_INPUT.format(skin=SPACING, a=SPACING, R=RADIUS, H=HEIGHT, c=C,
+                               horizon=HORIZON, s00=S00, rho=RHO, vol=SPACING**3,
+                               rate=RATE, steps=STEPS, dt=DT)
+    r = run_lammps(exe, text, STEPS, STEPS, SPACING**3)
+    return {"points": r["points"], "s_per_step": statistics.median(r["runs_s"]) / STEPS,
+            "kinetic_energy": r["kinetic_energy"], "mean_damage": r["mean_damage"]}
 
 
 def ours_shared(model):
@@ -230,25 +243,9 @@ def lammps_shared(exe, model, entries):
                                y1=sc["y"][1], pair=pair, rho=sc["density"],
                                vol=sc["spacing"] ** 3, v=sc["ramp"], steps=sc["steps"],
                                dt=sc["dt"])
-    times, out, loop = [], "", None
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "in.pd"
-        path.write_text(text)
-        for _ in range(REPEAT):
-            out = subprocess.run([exe, "-in", str(path), "-log", "none"], cwd=tmp,
-                                 capture_output=True, text=True, check=True).stdout
-            loop = re.findall(r"Loop time of ([0-9.eE+-]+) on \d+ procs for (\d+) steps "
-                              r"with (\d+) atoms", out)[-1]
-            if int(loop[1]) != sc["steps"]:
-                raise RuntimeError(f"LAMMPS timed {loop[1]} steps, not {sc['steps']}")
-            times.append(float(loop[0]))
-    last = [ln.split() for ln in out.splitlines()
-            if ln.strip().startswith(str(sc["steps"] + 1) + " ")]
-    _, ke, dmg = last[-1][:3]
-    median = statistics.median(times)
-    return {"points": int(loop[2]), "loop_s": median, "runs_s": times,
-            "bond_updates_per_s": entries * sc["steps"] / median,
-            "mean_damage": float(dmg), "kinetic_energy": float(ke) * sc["spacing"] ** 3}
+    r = run_lammps(exe, text, sc["steps"], sc["steps"] + 1, sc["spacing"] ** 3)
+    median = statistics.median(r["runs_s"])
+    return dict(r, loop_s=median, bond_updates_per_s=entries * sc["steps"] / median)
 
 
 def shared(exe):

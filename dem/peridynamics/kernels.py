@@ -70,7 +70,6 @@ def bond_pass(pos, start, nbr, length, omega, vol, qw, pw, params, broken, theta
         return
     corrected = params[P_CORR] != 0.0
     for i in prange(n):
-        sd = 0.0
         whole = not corrected
         if whole:
             for b in range(start[i], start[i + 1]):
@@ -80,6 +79,7 @@ def bond_pass(pos, start, nbr, length, omega, vol, qw, pw, params, broken, theta
         if whole:
             sdev_out[i] = 0.0
             continue
+        sd = 0.0
         for b in range(start[i], start[i + 1]):
             if broken[b]:
                 continue

@@ -51,6 +51,7 @@ PLANES = ("strain", "stress")
 
 class _Material:
     code = -1
+    surface_correction = False
 
     def __init__(self, E, nu, density, plane, s_crit, G0):
         for name, v in (("E", E), ("density", density)):
@@ -108,7 +109,7 @@ class _Material:
         p[P_ALPHA] = (15.0 if dim == 3 else 8.0) * self.mu
         p[P_C] = 2.0 * dim**2 * self.kappa(dim) / s_bulk if s_bulk > 0.0 else 0.0
         p[P_SCRIT] = self.critical_stretch(dim, horizon)
-        p[P_CORR] = 1.0 if getattr(self, "surface_correction", False) else 0.0
+        p[P_CORR] = 1.0 if self.surface_correction else 0.0
         return p
 
     def influence(self, length, horizon):

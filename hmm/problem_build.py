@@ -294,11 +294,28 @@ def _packing(problem, k, dim, progress, spot=None):
 
     from .experiment_config import shape_maker
 
-    law = LinearSpring.from_table(mc, rolling=rolling_spec(mc))
+    law = LinearSpring.from_table(micro_stiffness(mc, dim), rolling=rolling_spec(mc))
     return rvemod.generate(dim, mc["count"], mc["radius"], law, mc["p0"],
                            density=mc["density"], seed=mc["seed"] + k,
                            friction=mc["consolidation_friction"],
                            shape=shape_maker(mc, dim), **opts)
+
+
+#: [micro] kn [N/m] when the file gives none: per metre of thickness in 2D. Both make
+#: kn / (p0 r^(d-2)) = 1e3 at 100 kPa with 1 mm grains, in the range that
+#: :func:`dem.rve.generate` asks for
+DEFAULT_KN = {2: 1e8, 3: 1e5}
+
+
+def micro_stiffness(mc, dim):
+    """``[micro]`` with its contact stiffnesses: ``kn`` by the dimension
+    (:data:`DEFAULT_KN`) and ``kt = kn / 2`` where the file gives none."""
+    mc = dict(mc)
+    if mc.get("kn") is None:
+        mc["kn"] = DEFAULT_KN[dim]
+    if mc.get("kt") is None:
+        mc["kt"] = 0.5 * mc["kn"]
+    return mc
 
 
 def clone_rve(rve):

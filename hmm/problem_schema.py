@@ -171,10 +171,12 @@ SCHEMA = {
                          "(default 6)."),
         "sides_max": Key("int", range=Range(3.0, 64.0), only=("dem", "adaptive"),
                          doc="Optional: the most corners of a polygon."),
-        "kn": Key("float", "N/m", default=1e8, range=POSITIVE, only=("dem", "adaptive"),
-                  doc="Normal contact stiffness (linear law)."),
-        "kt": Key("float", "N/m", default=5e7, range=NONNEGATIVE, only=("dem", "adaptive"),
-                  doc="Tangential contact stiffness."),
+        "kn": Key("float", "N/m", range=POSITIVE, only=("dem", "adaptive"),
+                  doc="Normal contact stiffness (linear law); default 1e8 in 2D (per "
+                      "metre of thickness), 1e5 in 3D: kn / (p0 r^(d-2)) = 1e3 at "
+                      "100 kPa and 1 mm grains in both."),
+        "kt": Key("float", "N/m", range=NONNEGATIVE, only=("dem", "adaptive"),
+                  doc="Tangential contact stiffness; default kn / 2."),
         "mu": Key("float", default=0.5, range=NONNEGATIVE, only=("dem", "adaptive"),
                   doc="Friction coefficient."),
         "mu_roll": Key("float", default=0.0, range=NONNEGATIVE, only=("dem", "adaptive"),

@@ -224,3 +224,21 @@ def test_micro_rolling_resistance_keys():
     with pytest.raises(SceneError, match=r"\[micro\] mu_roll: rolling resistance acts "
                                          "between spheres and disks"):
         validate_problem({**DEMO, "micro": {**micro, "shape": "polygon"}})
+
+
+def test_micro_contact_stiffness_defaults_follow_the_dimension():
+    """Without kn, [micro] gives disks 1e8 N/m per metre and spheres 1e5 N/m: both
+    kn / (p0 r^(d-2)) = 1e3 at the default p0 and mean radius; kt defaults to kn / 2;
+    given values are kept."""
+    from hmm.problem_build import micro_stiffness
+
+    micro = {k: v for k, v in DEMO["micro"].items() if k not in ("kn", "kt")}
+    mc = validate_problem({**DEMO, "micro": micro})["micro"]
+    assert mc["kn"] is None and mc["kt"] is None
+    r = float(np.mean(mc["radius"]))
+    for dim in (2, 3):
+        law = micro_stiffness(mc, dim)
+        assert law["kn"] / (mc["p0"] * r ** (dim - 2)) == pytest.approx(1e3)
+        assert law["kt"] == 0.5 * law["kn"]
+    given = micro_stiffness({**mc, "kn": 2e7, "kt": 0.0}, 3)
+    assert (given["kn"], given["kt"]) == (2e7, 0.0)

@@ -8,7 +8,11 @@ strain increment of 1e-4 (100 steps at the default cap of 1e-5 per step), relaxe
 unbalanced-force ratio of 1e-3 and computes the contact tangent (eq 29) -- what
 ``hmm.micro.DEMMicroModel.trial`` does. Reported: median wall time per call over REPS
 calls, the DEM steps per call, and the stepping rate (particle-steps per second of the
-deforming-cell loop on one thread) measured on a plain run of the same packing.
+deforming-cell loop on one thread) measured on a plain run of the same packing. Also
+timed from the same state: one increment of a drained test (``drained_*``: an axial
+strain of 1e-3 with the lateral stresses held at 100 kPa by the servo, as ``hmm rve``
+runs it). ``*_outside_steps`` is a call's time less its steps at the plain stepping
+rate: what the call spends outside the step loop.
 
 usage::
 
@@ -49,6 +53,7 @@ def measure(dim, reps):
 
     times, steps = calls(1e-4, True)
     times_unrelaxed, steps_unrelaxed = calls(1e-3, False)
+    times_drained, steps_drained = drained(r, snap, reps)
     r.restore(snap)
     n_steps = 2000
     t0 = time.perf_counter()
@@ -62,8 +67,35 @@ def measure(dim, reps):
             "unrelaxed_call_time": C.median(times_unrelaxed),
             "unrelaxed_steps_per_call": steps_unrelaxed,
             "unrelaxed_outside_steps": C.median(times_unrelaxed) - steps_unrelaxed * step,
+            "drained_call_time": C.median(times_drained),
+            "drained_steps_per_call": steps_drained,
+            "drained_outside_steps": C.median(times_drained) - steps_drained * step,
             "particle_steps_per_s": n * n_steps / t_run,
             "step_time": step}
+
+
+def drained(r, snap, reps):
+    """``reps`` increments of a drained test, each from ``snap``: an axial strain of
+    1e-3 with every lateral stress held at 100 kPa by the servo (``RVE.load`` with a
+    stress target, as ``hmm rve`` runs a biaxial or triaxial test), after one warm-up.
+    Their wall times [s] and the median of their DEM steps."""
+    import numpy as np
+
+    d = r.dim
+    deps = np.zeros((d, d))
+    deps[-1, -1] = -1e-3
+    mask = [True] * (d - 1) + [False]
+    target = [-1e5] * (d - 1) + [0.0]
+    times, steps = [], []
+    for _ in range(reps + 1):
+        r.restore(snap)
+        s0 = r.sim.step
+        t0 = time.perf_counter()
+        r.load(deps, stress=target, mask=mask)
+        times.append(time.perf_counter() - t0)
+        steps.append(r.sim.step - s0)
+    r.restore(snap)
+    return times[1:], C.median(steps[1:])
 
 
 def main():
@@ -79,7 +111,10 @@ def main():
               f"({r['steps_per_call']:.0f} steps, {1e3 * r['outside_steps']:.2f} ms outside "
               f"them); unrelaxed call of 1e-3 {1e3 * r['unrelaxed_call_time']:.2f} ms "
               f"({r['unrelaxed_steps_per_call']:.0f} steps, "
-              f"{1e3 * r['unrelaxed_outside_steps']:.2f} ms outside them); stepping "
+              f"{1e3 * r['unrelaxed_outside_steps']:.2f} ms outside them); drained "
+              f"increment of 1e-3 {1e3 * r['drained_call_time']:.1f} ms "
+              f"({r['drained_steps_per_call']:.0f} steps, "
+              f"{1e3 * r['drained_outside_steps']:.2f} ms outside them); stepping "
               f"{r['particle_steps_per_s'] / 1e6:.2f} M particle-steps/s "
               f"({1e6 * r['step_time']:.0f} us per step); packing made in "
               f"{r['generation_time']:.1f} s")

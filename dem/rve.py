@@ -19,8 +19,9 @@ Gauss point needs:
 * **relaxation** -- steps go on until the unbalanced-force ratio (mean net force
   on a particle over mean contact force) is below ``tol`` and every servo has
   reached its target; past ``max_relax_steps`` a :class:`RelaxationError` says how
-  far it got. Under strain control the checks run inside the compiled step loop
-  (:meth:`dem.Simulation.relax`); a servo steps in chunks (:mod:`dem.rve_servo`).
+  far it got. The checks run inside the compiled step loop: under strain control
+  those of :meth:`dem.Simulation.relax`, with a servo the drive's
+  (:mod:`dem.contact.servo`, :mod:`dem.rve_servo`), which set the servo's rates.
 
 The response is the Love-Weber stress over contacts with periodic branch vectors,
 plus the kinetic part of the fluctuations (:func:`dem.observers.stress_and_tangent`,
@@ -299,10 +300,11 @@ class RVE:
 
         The call is two compiled loops and a measure: the increment's steps in one
         run, then :meth:`dem.Simulation.relax`, whose loop checks the unbalanced
-        force every :attr:`check_every` steps itself. Polytope RVEs, and calls of
-        :meth:`load` with a servo or a ``progress`` callback, step in chunks of
-        :attr:`check_every` with the checks in Python; a strain-controlled call gives
-        the same state either way, bit for bit.
+        force every :attr:`check_every` steps itself. Calls of :meth:`load` with a
+        servo or a ``progress`` callback run the drive of :mod:`dem.rve_servo`, whose
+        checks the loop makes too (polytope RVEs: between chunks of
+        :attr:`check_every` steps); a strain-controlled call gives the same state
+        either way, bit for bit.
         """
         sig = self.load(deps, relax=relax, tangent=tangent)
         return (sig, self._last["tangent"]) if tangent else sig
@@ -452,8 +454,8 @@ class RVE:
             f"strain increment, raise damping or max_relax_steps")
 
     def _drive(self, deps, target, mask, progress, relax=True):
-        """Mixed control and progress reports: chunks of :attr:`check_every` steps with
-        the checks and the servo in Python (:func:`dem.rve_servo.drive`)."""
+        """Mixed control and progress reports: the drive of
+        :func:`dem.rve_servo.drive`, its checks and servo compiled."""
         return drive(self, deps, target, mask, progress, relax)
 
     # ------------------------------------------------------------------ files

@@ -1,15 +1,18 @@
-"""The chunked drive of an RVE: stress and mixed control by a servo on the cell.
+"""The drive of an RVE under stress or mixed control, and with progress reports.
 
 :meth:`dem.rve.RVE.load` with stress targets (a drained biaxial or triaxial test, a
-consolidation) or with a ``progress`` callback steps in chunks of ``check_every``
-steps. After each chunk it measures the packing (:meth:`dem.rve.RVE.response`), sets
-the velocity gradient of each stress-controlled component from its error and the
-contact tangent (a proportional servo, time constant ``4 check_every dt``), and ends
-when every servo is on target and the unbalanced-force ratio is below ``tol``. A
-servo that stalls while the packing is at rest, once half the step cap is spent, has
-its gain doubled (:attr:`dem.rve.RVE.STALL_CHECKS`). Strain control without a
-callback runs in compiled loops instead (:meth:`dem.rve.RVE.apply_strain`), to the
-same state.
+consolidation) or with a ``progress`` callback imposes its increment and relaxes with a
+check every ``check_every`` steps: :func:`dem.contact.servo.drive_check` measures the
+packing, sets the velocity gradient of each stress-controlled component from its error
+and the contact tangent, and ends the drive when every servo is on target and the
+unbalanced-force ratio is below ``tol`` (see :mod:`dem.contact.servo`). For spheres and
+disks the sphere loop makes the checks itself: the drive is one compiled loop, which
+returns to Python only to rebuild the neighbour list, and, with a ``progress``
+callback, every :data:`PROGRESS_CHECKS` checks. The loop of level-set shapes runs from
+check to check, the same check called between its chunks. The cell's deformation is
+composed afterwards from the drive's log of chunks, as a chunk-by-chunk drive composes
+it. Strain control without a callback runs in :meth:`dem.rve.RVE.apply_strain`'s own
+compiled loops instead, to the same state.
 """
 
 import math
@@ -17,111 +20,113 @@ import math
 import numpy as np
 
 from .boundary import cell_map
+from .contact.relaxation import OUT_NEXT
+from .contact.servo import (N_SETTINGS, N_STATE, SET_MAX_RELAX, SET_N_LOAD, SET_RATE_MAX,
+                            SET_RELAX, SET_SERVOED, SET_SHEAR_TOL, SET_STALL_CHECKS,
+                            SET_STRESS_TOL, SET_TAU, ST_BEST, ST_BOOSTS, ST_CHUNKS, ST_GAIN,
+                            drive_check)
+from .scene_measures import never_check
+from .state import RelaxCheck, ServoDrive
+from .status import CAME_APART, NOT_RELAXED, OK, RELAXED
+
+#: with a ``progress`` callback, a drive of spheres reports after this many checks
+PROGRESS_CHECKS = 20
 
 
-def servo(rve, r, target, mask, gain, lgrad):
-    """Set ``lgrad`` [1/s] on the stress-controlled components from their errors in the
-    response ``r`` (zero elsewhere). Returns ``(on_target, worst, sign)``: whether every
-    servo is within its tolerance, the largest error in units of its tolerance, and
-    that error's sign."""
-    d, dt = rve.dim, rve.sim.dt
-    rate_max = rve.max_step_strain / dt
-    tau = 4.0 * rve.check_every * dt  # servo time constant
-    on_target = True
-    worst, worst_sign = 0.0, 0.0
-    lgrad[:] = 0.0
-    c = r["tangent"]
-    # a shear target of zero is judged against the mean stress
-    scale = max(np.abs(np.diag(target)).max(), abs(np.trace(r["stress"])) / d, 1e-300)
-    for a, b in zip(*np.nonzero(np.triu(mask)), strict=True):
-        err = target[a, b] - r["stress"][a, b]
-        if a == b and target[a, b] != 0.0:
-            allowed = rve.stress_tol * abs(target[a, b])
-        else:  # shear (or a zero target): SHEAR_TOL of the mean stress
-            allowed = rve.SHEAR_TOL * scale
-        on_target = on_target and abs(err) <= allowed
-        if abs(err) > worst * allowed:
-            worst, worst_sign = abs(err) / allowed, math.copysign(1.0, err)
-        # d sigma_ab = C_abab d eps_ab (+ C_abba d eps_ba off the diagonal)
-        m = c[a, b, a, b] * (1.0 if a == b else 2.0)
-        rate = gain * err / (m * tau) if m > 0.0 else math.copysign(rate_max, err)
-        lgrad[a, b] = lgrad[b, a] = max(-rate_max, min(rate_max, rate))
-    return on_target, worst, worst_sign
+def drive_arrays(rve, n_load, l_load, target, mask, relax):
+    """The :class:`~dem.state.RelaxCheck` of a drive of ``rve``: its settings, a fresh
+    servo (gain 1), room in the log for every chunk the step cap allows."""
+    sim, d, every = rve.sim, rve.dim, rve.check_every
+    settings = np.zeros(N_SETTINGS)
+    settings[SET_STRESS_TOL] = rve.stress_tol
+    settings[SET_SHEAR_TOL] = rve.SHEAR_TOL
+    settings[SET_RATE_MAX] = rve.max_step_strain / sim.dt
+    settings[SET_TAU] = 4.0 * every * sim.dt  # the servo's time constant
+    settings[SET_RELAX] = float(relax)
+    settings[SET_MAX_RELAX] = rve.max_relax_steps
+    settings[SET_N_LOAD] = n_load
+    settings[SET_STALL_CHECKS] = rve.STALL_CHECKS
+    settings[SET_SERVOED] = float(mask.any())
+    state = np.zeros(N_STATE)
+    state[ST_GAIN], state[ST_BEST] = 1.0, math.inf
+    chunks = -(-n_load // every) + -(-rve.max_relax_steps // every) + 2
+    n = sim.bodies.n
+    servo = ServoDrive(np.ascontiguousarray(target, np.float64),
+                       np.ascontiguousarray(mask, np.bool_),
+                       np.ascontiguousarray(l_load, np.float64), settings, state,
+                       np.zeros((chunks, d, d)), np.zeros(chunks, np.int64),
+                       np.zeros(n, np.int64), np.zeros((d, d)), np.zeros((d, d, d, d)),
+                       np.zeros((d, d)))
+    return RelaxCheck(every, float(rve.tol), float(rve.APART_COORDINATION),
+                      int(rve.APART_CHECKS), np.zeros((n, d)), np.zeros(5), servo)
 
 
-class StallWatch:
-    """The gain of a servo that stalls at rest (:attr:`dem.rve.RVE.STALL_CHECKS`):
-    doubled after that many checks without a 10 % gain on the best error, halved
-    (to at least 1) on an overshoot."""
-
-    def __init__(self, checks):
-        self.checks = checks
-        self.gain, self.best, self.stalled, self.last_sign = 1.0, math.inf, 0, 0.0
-
-    def watch(self, worst, worst_sign):
-        """One check of a servo at rest and off target; True when the gain doubled."""
-        boosted = False
-        if self.gain > 1.0 and worst_sign == -self.last_sign:
-            self.gain = max(1.0, 0.5 * self.gain)  # overshot
-        if worst < 0.9 * self.best:
-            self.best, self.stalled = worst, 0
-        else:
-            self.stalled += 1
-        if self.stalled >= self.checks:
-            self.gain, self.best, self.stalled = 2.0 * self.gain, worst, 0
-            boosted = True
-        self.last_sign = worst_sign
-        return boosted
+def _check(rve, check):
+    """One drive check from Python (the first, and those between a shape loop's
+    chunks)."""
+    sim = rve.sim
+    sim.prime()
+    b, nl = sim.bodies, sim.neighbors
+    pgeom = sim.shape_state.pgeom if sim.shaped else np.zeros((0, 7))
+    return drive_check(sim.model.kind("pp").code, b.pos, b.vel, b.mass, b.radius, b.mat_id,
+                       nl.pairs, nl.img, sim.image_matrix, sim.cell.lgrad,
+                       sim.pair_state.fpair, sim.shaped, pgeom, sim.parameter_table("pp"),
+                       check)
 
 
-def drive(rve, deps, target, mask, progress, relax=True):
+def _run(rve, check, progress, start, chunked):
+    """Step the drive of ``check`` from its first check on; returns the status of the
+    check that ended it."""
+    sim = rve.sim
+    code = _check(rve, check)
+    if chunked:  # a call per chunk, the check between them (the shape loop's way)
+        while code == OK:
+            sim.run(int(check.out[OUT_NEXT]), progress=False)
+            code = _check(rve, check)
+            if progress is not None:
+                progress(sim.step - start)
+        return code
+    most = int(check.servo.settings[SET_N_LOAD] + check.servo.settings[SET_MAX_RELAX]
+               + 2 * check.every)  # the checks end the drive before this
+    piece = most if progress is None else PROGRESS_CHECKS * check.every
+    sim._check = check
+    try:
+        while code == OK and sim.step - start < most:
+            code = sim._steps(piece, False)
+            if progress is not None:
+                progress(sim.step - start)
+    finally:
+        sim._check = never_check(rve.dim)
+    return code
+
+
+def drive(rve, deps, target, mask, progress, relax=True, chunked=False):
     """Drive ``rve`` (:meth:`dem.rve.RVE.load`'s arguments, validated); returns its
-    stress (d, d) [Pa] at the end, and keeps the last response in ``rve._last``."""
-    sim, cell, d = rve.sim, rve.cell, rve.dim
+    stress (d, d) [Pa] at the end, and keeps the last response in ``rve._last``.
+    ``chunked`` steps spheres as shapes are stepped, a call of the loop per chunk with
+    the check made from Python between them: the same state, bit for bit (the tests'
+    reference for the checks the loop makes)."""
+    sim, cell = rve.sim, rve.cell
     n_load, l_load = rve._load_gradient(deps)
-    servoed = bool(mask.any())
+    check = drive_arrays(rve, n_load, l_load, target, mask, relax)
     start = sim.step
-    done_load = 0
-    apart = 0
-    stall = StallWatch(rve.STALL_CHECKS)
-    lgrad = np.zeros((d, d))
-    r = rve.response(tangent=servoed)
-    while True:
-        servo_ok = True
-        lgrad[:] = 0.0
-        if servoed:
-            servo_ok, worst, worst_sign = servo(rve, r, target, mask, stall.gain, lgrad)
-            late = sim.step - start - n_load >= rve.max_relax_steps // 2
-            if late and not servo_ok and r["unbalanced"] < rve.tol:
-                # at rest, off target, half the cap spent: still closing in?
-                rve.servo_boosts += stall.watch(worst, worst_sign)
-        n_chunk = rve.check_every
-        if done_load < n_load:
-            n_chunk = min(n_chunk, n_load - done_load)
-            lgrad += l_load
-        elif servo_ok and (r["unbalanced"] < rve.tol or not relax):
-            break
-        if done_load >= n_load and not servoed \
-                and r["coordination"] < rve.APART_COORDINATION:
-            apart += 1
-            if apart >= rve.APART_CHECKS:
-                cell.lgrad[:] = 0.0
-                raise rve._apart(r, apart)
-        else:
-            apart = 0
-        if sim.step - start - n_load >= rve.max_relax_steps:
-            cell.lgrad[:] = 0.0
-            raise rve._not_relaxed(r, target, mask)
-        cell.lgrad[:] = lgrad
-        sim.run(n_chunk, progress=False)
-        rve.steps_run += n_chunk
-        rve.deformation = cell_map(lgrad, sim.dt, n_chunk) @ rve.deformation
+    try:
+        code = _run(rve, check, progress, start, chunked or sim.shaped)
+    finally:
         cell.lgrad[:] = 0.0
-        if done_load < n_load:
-            done_load += n_chunk
-        r = rve.response(tangent=servoed)
-        if progress is not None:
-            progress(sim.step - start)
+    servo = check.servo
+    rve.steps_run += sim.step - start
+    for k in range(int(servo.state[ST_CHUNKS])):  # the chunks ran whole, in this order
+        rve.deformation = cell_map(servo.log[k], sim.dt, int(servo.log_n[k])) \
+            @ rve.deformation
+    rve.servo_boosts += int(servo.state[ST_BOOSTS])
+    r = rve.response(tangent=bool(mask.any()))
+    if code == CAME_APART:
+        raise rve._apart(r, rve.APART_CHECKS)
+    if code == NOT_RELAXED:
+        raise rve._not_relaxed(r, target, mask)
+    if code != RELAXED:
+        raise RuntimeError(f"the drive ended with status {code} at step {sim.step}")
     rve.last_relax_steps = sim.step - start
     rve._last = r
     return r["stress"]

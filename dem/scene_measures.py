@@ -14,13 +14,23 @@ import numpy as np
 
 from .contact.relaxation import relax_check, unbalanced_ratio
 from .shapes import Shape
-from .state import RelaxCheck
+from .state import RelaxCheck, ServoDrive
 from .status import CAME_APART, OK, RELAXED
+
+
+def no_drive(dim):
+    """The :class:`~dem.state.ServoDrive` part of a check without a drive: empty
+    settings, and arrays of the drive's types."""
+    d = dim
+    return ServoDrive(np.zeros((d, d)), np.zeros((d, d), np.bool_), np.zeros((d, d)),
+                      np.zeros(0), np.zeros(0), np.zeros((0, d, d)), np.zeros(0, np.int64),
+                      np.zeros(0, np.int64), np.zeros((d, d)), np.zeros((d, d, d, d)),
+                      np.zeros((d, d)))
 
 
 def never_check(dim):
     """The relaxation check of a plain run: none."""
-    return RelaxCheck(0, 0, 0.0, 0.0, 0, np.zeros((0, dim)), np.zeros(4))
+    return RelaxCheck(0, 0.0, 0.0, 0, np.zeros((0, dim)), np.zeros(5), no_drive(dim))
 
 
 class Relaxation(NamedTuple):
@@ -82,8 +92,8 @@ class MeasureScene:
                              f"{min_coordination}")
         self.prime()
         b, nl = self.bodies, self.neighbors
-        check = RelaxCheck(every, every, float(tol), float(min_coordination), apart_checks,
-                           np.zeros((b.n, self.dim)), np.zeros(4))
+        check = RelaxCheck(every, float(tol), float(min_coordination), apart_checks,
+                           np.zeros((b.n, self.dim)), np.zeros(5), no_drive(self.dim))
         code = relax_check(b.pos, b.radius, nl.pairs, nl.img, self._hmat,
                            self.pair_state.fpair, check)
         start = self.step
@@ -97,12 +107,6 @@ class MeasureScene:
         status = "relaxed" if code == RELAXED else "apart" if code == CAME_APART else "cap"
         return Relaxation(self.step - start, float(out[0]), int(out[1]), int(out[3]),
                           status)
-
-    def _check_moved(self, done):
-        """``done`` steps of a relaxation ran: the steps to its next check."""
-        c = self._check
-        first = c.first - done if done < c.first else c.every - (done - c.first) % c.every
-        self._check = c._replace(first=first)
 
     def contacts(self):
         """Touching contacts now, as a dict of arrays (see

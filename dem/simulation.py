@@ -28,7 +28,8 @@ from .state import (
     StepSettings,
     WallState,
 )
-from .status import CAME_APART, NOCONVERGE, NONFINITE, OK, OVERLAP, REBUILD, RELAXED
+from .status import (CAME_APART, NOCONVERGE, NONFINITE, NOT_RELAXED, OK, OVERLAP, REBUILD,
+                     RELAXED)
 from .timestep import DT_FACTOR, STABLE_FACTOR, stable_time_step
 
 log = logging.getLogger(__name__)
@@ -409,10 +410,8 @@ class Simulation(ShapeScene, MeshScene, MeasureScene):
             self.time = self.step * self.dt
             n -= done
             code = self._status[0]
-            if self._check.every > 0:
-                self._check_moved(done)
-                if code == RELAXED or code == CAME_APART:
-                    return int(code)
+            if self._check.every > 0 and code in (RELAXED, CAME_APART, NOT_RELAXED):
+                return int(code)  # a check stopped the run
             resume = code == REBUILD  # stopped mid-step, after the drift
             if resume:
                 self._rebuild()

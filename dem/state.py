@@ -522,21 +522,46 @@ class StepSettings(NamedTuple):
     grow: float
 
 
+class ServoDrive(NamedTuple):
+    """An RVE's drive under mixed control, checked in the compiled loop
+    (:mod:`dem.contact.servo`): stress targets ``target`` (d, d) [Pa] on the components
+    of ``mask`` (d, d, symmetric), the velocity gradient ``l_load`` (d, d) [1/s] of the
+    strain increment, ``settings`` and ``state`` (the ``SET_*`` and ``ST_*`` entries of
+    :mod:`dem.contact.servo`), the velocity gradient [1/s] and steps of each chunk
+    between checks (``log`` (k, d, d), ``log_n`` (k,)), and the measure's scratch:
+    contacts per body ``degree`` (n,), ``stress`` (d, d), ``tangent`` (d, d, d, d),
+    ``fabric`` (d, d). Empty ``settings``: no drive (a plain relaxation)."""
+
+    target: np.ndarray
+    mask: np.ndarray
+    l_load: np.ndarray
+    settings: np.ndarray
+    state: np.ndarray
+    log: np.ndarray
+    log_n: np.ndarray
+    degree: np.ndarray
+    stress: np.ndarray
+    tangent: np.ndarray
+    fabric: np.ndarray
+
+
 class RelaxCheck(NamedTuple):
-    """The relaxation check of the sphere loop (:mod:`dem.contact.relaxation`): every
-    ``every`` steps (0: never), the first ``first`` steps into the call, the loop
-    computes the unbalanced-force ratio and stops below ``tol``, or when the
-    coordination number was below ``min_coordination`` at ``apart_checks`` checks in
-    a row (0: never); ``net`` (n, d) is scratch, ``out`` (4,) the ratio, contacts and
-    low checks in a row of the last check, and the checks made."""
+    """The checks of the sphere loop (:mod:`dem.contact.relaxation`): every ``every``
+    steps (0: never) the loop computes the unbalanced-force ratio and stops below
+    ``tol``, or when the coordination number was below ``min_coordination`` at
+    ``apart_checks`` checks in a row (0: never); with a ``servo``
+    (:class:`ServoDrive`) each check is that drive's instead. ``net`` (n, d) is
+    scratch; ``out`` (5,) holds the ratio, contacts and low checks in a row of the last
+    check, the checks made, and the steps to the next check (counted down by the loop,
+    so that a run split into calls checks where one call would)."""
 
     every: int
-    first: int
     tol: float
     min_coordination: float
     apart_checks: int
     net: np.ndarray
     out: np.ndarray
+    servo: ServoDrive
 
 
 class NeighborArrays(NamedTuple):

@@ -19,7 +19,8 @@ converge, as stored in ``benchmarks/results/stability_map.json``.
 
 from enum import IntEnum, unique
 
-__all__ = ["CAME_APART", "NOCONVERGE", "NONFINITE", "OK", "OVERLAP", "REBUILD", "RELAXED", "Status"]
+__all__ = ["CAME_APART", "NOCONVERGE", "NONFINITE", "NOT_RELAXED", "OK", "OVERLAP", "REBUILD",
+           "RELAXED", "Status"]
 
 
 @unique
@@ -42,6 +43,9 @@ class Status(IntEnum):
     #: a relaxation check found too few contacts for its set number of checks in a
     #: row: the packing came apart (a gas, which never relaxes)
     CAME_APART = 6
+    #: a drive check (:mod:`dem.contact.servo`) found its relaxation's step cap spent
+    #: with the servo off target or the packing not at rest
+    NOT_RELAXED = 7
 
 
 OK = int(Status.OK)
@@ -51,3 +55,4 @@ OVERLAP = int(Status.OVERLAP)
 REBUILD = int(Status.REBUILD)
 RELAXED = int(Status.RELAXED)
 CAME_APART = int(Status.CAME_APART)
+NOT_RELAXED = int(Status.NOT_RELAXED)

@@ -45,7 +45,8 @@ from ..status import NONFINITE, OK, REBUILD
 from .kinematics import (_cell_map, _cell_start, _deform_cell, _drift_body, _finish_body,
                          _strain_norm, cell_spin, moved2)
 from .mesh_contacts import mesh_forces, mesh_power, move_meshes
-from .relaxation import relax_check
+from .relaxation import OUT_NEXT, relax_check
+from .servo import drive_check
 from .sphere_contacts import (N_BLOCKS, _compact_inner, _near, _scatter_pair, _sphere_pair,
                               _sphere_wall)
 
@@ -109,8 +110,10 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
         ``status_out`` (4,) int64 receives (code, i, j, inner-list refreshes); ``work_out`` (1,)
         accumulates the work of walls on bodies [J]. ``meshes`` is the
         :class:`~dem.contact.mesh_contacts.MeshLoop` (empty arrays unless ``mesh``).
-        ``check`` (:class:`~dem.state.RelaxCheck`) asks for relaxation checks: the call
-        ends early with status ``RELAXED`` (or ``CAME_APART``) at the check that finds it.
+        ``check`` (:class:`~dem.state.RelaxCheck`) asks for relaxation checks, or an
+        RVE's drive (:mod:`dem.contact.servo`), whose checks set ``lgrad``: the call ends
+        early with the status of the check that stops it (``RELAXED``, ``CAME_APART``,
+        ``NOT_RELAXED``).
         """
         dt, gravity, damping, skin, overlap_limit, skin_inner, grow = settings
         (pos, vel, rot, ang_vel, force, torque, radius, mass, inv_mass, inv_inertia,
@@ -137,10 +140,17 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
         rmax = _cell_start(DEFORM and is_cell, radius, hmat, cellref[1], fmap)
         # a cell whose velocity gradient has a spin turns springs and orientations;
         # its contacts then feel the stretching rate ``rate``, not L's symmetric part
-        spin, quat, rate = np.eye(DIM), np.zeros(4), lgrad.copy()
-        turns = cell_spin(DIM, DEFORM and is_cell and not prime, lgrad, dt, spin, quat,
-                          rate)
+        # (made again when a drive's check sets a new L: ``respin``)
+        spin, quat, rate = np.eye(DIM), np.zeros(4), np.zeros((DIM, DIM))
+        turns = False
+        respin = True
+        pgeom_none = np.zeros((0, 7))  # spheres have no contact geometry rows
         for it in range(n_iter):
+            if respin:
+                rate[:, :] = lgrad
+                turns = cell_spin(DIM, DEFORM and is_cell and not prime, lgrad, dt, spin,
+                                  quat, rate)
+                respin = False
             if not prime and not (resume and it == 0):
                 if DEFORM and is_cell:  # the cell follows the affine field: H += dt L H
                     _deform_cell(hmat, lgrad, dt)
@@ -357,9 +367,20 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
                 return done
             if not prime:
                 done += 1
-                if check.every > 0 and done >= check.first \
-                        and (done - check.first) % check.every == 0:
-                    code = relax_check(pos, radius, pairs, img, hmat, fpair, check)
+                if check.every > 0:
+                    check.out[OUT_NEXT] -= 1.0
+                if check.every > 0 and check.out[OUT_NEXT] <= 0.0:
+                    code = OK
+                    if PERIODIC:
+                        if check.servo.settings.shape[0] == 0:
+                            code = relax_check(pos, radius, pairs, img, hmat, fpair, check)
+                        else:  # an RVE's drive: the check sets the cell's next L
+                            code = drive_check(PP, pos, vel, mass, radius, mat_id, pairs,
+                                               img, hmat, lgrad, fpair, False, pgeom_none,
+                                               params_pp, check)
+                            respin = True
+                    else:
+                        code = relax_check(pos, radius, pairs, img, hmat, fpair, check)
                     if code != OK:
                         status_out[0] = code
                         return done

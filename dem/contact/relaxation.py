@@ -20,6 +20,10 @@ import math
 from .._jit import kernel
 from ..status import CAME_APART, OK, RELAXED
 
+#: the entry of ``RelaxCheck.out`` (:class:`dem.state.RelaxCheck`) that holds the steps
+#: to the next check
+OUT_NEXT = 4
+
 
 @kernel(inline=True)
 def branch(k, d, pos, pairs, img, hmat, br):
@@ -97,12 +101,13 @@ def relax_check(pos, radius, pairs, img, hmat, fpair, check):
     ratio is below ``check.tol``; ``CAME_APART`` when the coordination number (2 contacts
     per body) was below ``check.min_coordination`` at ``check.apart_checks`` checks in a
     row; else ``OK``. ``check.out`` gets the ratio, the contacts, the low checks in a
-    row, and one more check."""
+    row, one more check, and the steps to the next (``check.every``)."""
     n_c, ratio = unbalanced_ratio(pos, radius, pairs, img, hmat, fpair, check.net)
     out = check.out
     out[0] = ratio
     out[1] = n_c
     out[3] += 1.0
+    out[OUT_NEXT] = check.every
     if ratio < check.tol:
         return RELAXED
     if 2.0 * n_c / pos.shape[0] < check.min_coordination:

@@ -183,6 +183,99 @@ def test_biaxial_step_keeps_the_lateral_stress(packing):
     packing.restore(snap)
 
 
+def _state(r):
+    b = r.sim.bodies
+    return [a.copy() for a in (b.pos, b.vel, b.ang_vel, r.cell.h, r.deformation,
+                               r.sim.pair_state.hist, r.stress())] + [r.sim.step]
+
+
+def _same(a, b):
+    return all(np.array_equal(x, y) for x, y in zip(a, b, strict=True))
+
+
+def test_a_drive_checked_in_the_loop_equals_one_checked_between_chunks(packing):
+    """A drained biaxial step and a sheared, servoed step: the sphere loop making the
+    drive's checks itself ends in the state, bit for bit, of one call of the loop per
+    chunk with the same check made from Python in between (the way shapes are
+    driven), and a progress callback, which splits the loop's run, changes nothing."""
+    from dem.rve_servo import drive
+
+    snap = packing.snapshot()
+    d2 = np.diag([0.0, -1e-3])
+    shear = np.array([[0.0, 3e-4], [0.0, 0.0]])
+    cases = [(d2, np.diag([-1e5, 0.0]), np.diag([True, False])),
+             (shear, np.diag([-1e5, -1e5]), np.diag([True, True]))]
+    try:
+        for deps, target, mask in cases:
+            ends, steps = [], []
+            for chunked, progress in ((False, None), (True, None),
+                                      (False, steps.append)):
+                packing.restore(snap)
+                drive(packing, deps, target, mask, progress, chunked=chunked)
+                ends.append(_state(packing))
+            assert _same(ends[0], ends[1]) and _same(ends[0], ends[2])
+            assert steps and steps[-1] == packing.last_relax_steps > 100  # 100 loading
+            assert steps == sorted(steps)
+    finally:
+        packing.restore(snap)
+
+
+def test_a_servoed_drive_that_cannot_finish_says_so(packing):
+    """A servo given 100 steps after a 1e-3 increment cannot bring the lateral stress
+    back: RelaxationError, its targets named, and the cell's velocity gradient left at
+    zero. A strain-controlled drive with progress reports that pulls the packing apart
+    ends within APART_CHECKS checks, as the compiled strain call does."""
+    snap = packing.snapshot()
+    packing.max_relax_steps = 100
+    try:
+        with pytest.raises(rve.RelaxationError, match=r"within 100 steps.*targets "
+                                                      r"\[-100000.0\]"):
+            packing.load(np.diag([0.0, -1e-3]), stress=[-1e5, 0.0], mask=[True, False])
+        assert not packing.cell.lgrad.any()
+        packing.max_relax_steps = 200_000
+        packing.restore(snap)
+        with pytest.raises(rve.RelaxationError, match="came apart"):
+            packing.load(np.diag([2e-2, 2e-2]), progress=lambda steps: None)
+        relax = packing.sim.step - int(snap["clock"][0]) - 2000
+        assert relax <= rve.RVE.APART_CHECKS * packing.check_every
+    finally:
+        packing.max_relax_steps = 200_000
+        packing.restore(snap)
+
+
+def test_the_servo_rate_and_the_stall_watch():
+    """The servo drives a diagonal component at gain err / (C_aaaa tau), a shear one at
+    gain err / (2 C_abab tau), both capped at the largest strain rate, and pushes at
+    that cap where the tangent is zero; a stalled servo's gain doubles after its set
+    checks without a 10 % gain, and halves on an overshoot."""
+    from dem.contact import servo as sv
+
+    se = np.zeros(sv.N_SETTINGS)
+    se[sv.SET_STRESS_TOL], se[sv.SET_SHEAR_TOL] = 1e-3, 1e-2
+    se[sv.SET_RATE_MAX], se[sv.SET_TAU] = 10.0, 2e-3
+    stress = np.array([[-0.9e5, 50.0], [50.0, -2e5]])
+    target = np.diag([-1e5, 0.0])
+    c = np.zeros((2, 2, 2, 2))
+    c[0, 0, 0, 0], c[0, 1, 0, 1] = 1e8, 2e7
+    lgrad = np.zeros((2, 2))
+    mask = np.array([[True, True], [True, False]])
+    ok, worst, sign = sv.servo_rates(2, stress, c, target, mask, 1.0, se, lgrad)
+    assert lgrad[0, 0] == pytest.approx(-1e4 / (1e8 * 2e-3))
+    assert lgrad[0, 1] == lgrad[1, 0] == pytest.approx(-50.0 / (4e7 * 2e-3))
+    assert lgrad[1, 1] == 0.0
+    # scale of the shear: max(largest target 1e5, mean stress 1.45e5)
+    assert not ok and worst == pytest.approx(1e4 / 100.0) and sign == -1.0
+    c[0, 0, 0, 0] = 0.0
+    sv.servo_rates(2, stress, c, target, mask, 1.0, se, lgrad)
+    assert lgrad[0, 0] == -10.0  # no stiffness: the largest rate, towards the target
+    st = np.zeros(sv.N_STATE)
+    st[sv.ST_GAIN], st[sv.ST_BEST] = 1.0, np.inf
+    boosts = [sv.stall_watch(st, w, 1.0, 3) for w in (5.0, 4.8, 4.7, 4.6)]
+    assert boosts == [0, 0, 0, 1] and st[sv.ST_GAIN] == 2.0
+    sv.stall_watch(st, 1.0, -1.0, 3)  # overshot: the error changed sign
+    assert st[sv.ST_GAIN] == 1.0
+
+
 def test_relaxation_that_cannot_finish_says_so(packing):
     """1 % strain in 10 steps leaves the packing far from equilibrium: 10 more steps
     cannot relax it."""

@@ -63,6 +63,7 @@ docs-walk: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/dem_throughput.py
+	BASE=a7808d7 CODES=dem $(BIN)/python benchmarks/dem_throughput.py
 	$(BIN)/python benchmarks/dt_speed_accuracy.py
 	$(BIN)/python benchmarks/neighbor_backends.py
 	$(BIN)/python benchmarks/step_profile.py

@@ -54,15 +54,19 @@ def worker_env(threads):
     return env
 
 
-def run_worker(script, args, threads, timeout=3600):
+def run_worker(script, args, threads, timeout=3600, tree=None):
     """Run ``python script --worker *args`` in a fresh process; return its RESULT dict.
 
     The worker prints one line ``RESULT {json}``. On failure the dict has ``ok: False``
-    and the tail of the worker's stderr under ``error``.
+    and the tail of the worker's stderr under ``error``. ``tree``: a source tree (see
+    :func:`source_tree`) whose packages the worker imports instead of this checkout's.
     """
     cmd = [sys.executable, str(script), "--worker", *[str(a) for a in args]]
+    env = worker_env(threads)
+    if tree is not None:
+        env["PYTHONPATH"] = str(tree) + os.pathsep + env.get("PYTHONPATH", "")
     try:
-        p = subprocess.run(cmd, env=worker_env(threads), cwd=REPO, capture_output=True,
+        p = subprocess.run(cmd, env=env, cwd=REPO, capture_output=True,
                            text=True, timeout=timeout)
     except subprocess.TimeoutExpired:
         return {"ok": False, "error": f"timed out after {timeout} s"}
@@ -73,6 +77,18 @@ def run_worker(script, args, threads, timeout=3600):
             return out
     tail = (p.stderr or p.stdout or "").strip().splitlines()[-8:]
     return {"ok": False, "error": f"rc={p.returncode}: " + " | ".join(tail)}
+
+
+def source_tree(revision):
+    """The sources of git ``revision`` of this repository, exported once into
+    ``WORK/trees/<revision>`` (``git archive``): a tree to run a worker on."""
+    tree = WORK / "trees" / revision
+    if not (tree / "dem" / "__init__.py").exists():
+        tree.mkdir(parents=True, exist_ok=True)
+        archive = subprocess.run(["git", "archive", revision], cwd=REPO, check=True,
+                                 capture_output=True).stdout
+        subprocess.run(["tar", "-x", "-C", str(tree)], input=archive, check=True)
+    return tree
 
 
 def emit_result(result):
@@ -309,7 +325,7 @@ def _fmt(x, spec):
 
 def _par_label(code, p):
     p = int(p)
-    if code == "dem":
+    if code in ("dem", "dem_base"):
         return f"{p} thread" + ("s" if p > 1 else "")
     if code == "yade":
         return f"{p} thread" + ("s" if p > 1 else "") + f" (-j{p})"

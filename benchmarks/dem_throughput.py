@@ -20,6 +20,14 @@ usage::
 
 environment: NSTEPS (2000) NPRE (500) REPS (3) THREADS ("1 2") SCENES ("static compress")
 CODES ("dem lammps liggghts yade") DEM_BENCH_SCENE (scene directory).
+
+``BASE=<git revision>`` adds our engine at that revision as one more code, ``dem_base``
+(its sources exported into ``benchmarks/work/trees``, run by the same worker), timed
+interleaved with the others; the figures are ``ratio_base`` (this checkout's
+particle-steps per second over the revision's, one thread) and ``ratio_base_2`` (two),
+and the run writes ``results/dem_throughput_base.json`` instead, so that the peers'
+record stays. ``BASE=a7808d7 CODES=dem python benchmarks/dem_throughput.py`` measures
+the engine against the revision before rolling resistance.
 """
 
 import argparse
@@ -70,8 +78,8 @@ def worker(scene, threads):
         "neighbor_builds": sim.neighbors.n_builds - builds0})
 
 
-def run_dem(scene, threads):
-    r = C.run_worker(Path(__file__), [scene, threads], threads)
+def run_dem(scene, threads, tree=None):
+    r = C.run_worker(Path(__file__), [scene, threads], threads, tree=tree)
     if r.get("ok"):  # per thread, as LAMMPS reports it per rank: 100 = cores fully used
         r["cpu_percent"] = 100.0 * r["cpu_s"] / r["wall_s"] / threads
     return r
@@ -208,7 +216,8 @@ def aggregate(runs, scenes, codes, pars):
                 if not rs:
                     continue
                 results[scene].setdefault(code, {})[str(p)] = {
-                    "parallelism": "threads" if code in ("dem", "yade") else "MPI ranks",
+                    "parallelism": ("threads" if code in ("dem", "dem_base", "yade")
+                                    else "MPI ranks"),
                     "pps": [r["pps"] for r in ok], "wall_s": [r["wall_s"] for r in ok],
                     "median_pps": C.median(r["pps"] for r in ok),
                     "median_wall_s": C.median(r["wall_s"] for r in ok),
@@ -229,6 +238,8 @@ def aggregate(runs, scenes, codes, pars):
             "speedup_2_threads": C.ratio(med("dem", 2), med("dem", 1)),
             "speedup_lammps_2_ranks": C.ratio(med("lammps", 2), med("lammps", 1)),
             "speedup_liggghts_2_ranks": C.ratio(med("liggghts", 2), med("liggghts", 1)),
+            "ratio_base": C.ratio(med("dem", 1), med("dem_base", 1)),
+            "ratio_base_2": C.ratio(med("dem", 2), med("dem_base", 2)),
         }
     return results, per_scene
 
@@ -294,6 +305,14 @@ def main(argv=None):
         return 2
     P = C.load_params(sdir)
     skipped, binaries, pars = [], {}, {}
+    out = OUT
+    base_rev = os.environ.get("BASE", "").strip()
+    tree = None
+    if base_rev:  # our engine at another revision: one more code, its own JSON
+        tree = C.source_tree(base_rev)
+        codes = [*codes, "dem_base"]
+        pars["dem_base"] = threads
+        out = C.RESULTS / "dem_throughput_base.json"
     mpirun, mpirun_version, yade_version = None, None, None
     if any(c in ("lammps", "liggghts") for c in codes) and max(threads) > 1:
         mpirun, mpirun_version = find_openmpi_mpirun()
@@ -301,7 +320,7 @@ def main(argv=None):
             skipped.append({"code": "lammps/liggghts", "reason": f"> 1 rank: {mpirun_version}"})
             mpirun_version = None
     for code in codes:
-        if code == "dem":
+        if code in ("dem", "dem_base"):
             pars[code] = threads
             continue
         binary = shutil.which(BINARIES[code])
@@ -325,6 +344,7 @@ def main(argv=None):
                        "mu": P["MU"], "e_rest": P["E_REST"], "gamma_n": P["GAMMA_N"],
                        "v_top": P["V_TOP"]},
             "versions": {"ours": C.our_versions(), "mpirun": mpirun_version,
+                         **({"base": base_rev} if base_rev else {}),
                          **({"yade": yade_version} if yade_version else {})},
             "skipped": skipped, "runs": []}
     for s in skipped:
@@ -336,8 +356,8 @@ def main(argv=None):
                 for p in pars[code]:
                     tag = f"{code}_{p}_{scene}_r{rep}"
                     load = C.loadavg()
-                    if code == "dem":
-                        r = run_dem(scene, p)
+                    if code in ("dem", "dem_base"):
+                        r = run_dem(scene, p, tree if code == "dem_base" else None)
                     else:
                         r = run_peer(code, scene, p, sdir, nsteps, npre, binaries[code],
                                      mpirun, tag)
@@ -355,7 +375,7 @@ def main(argv=None):
                     else:
                         print(f"rep {rep} {scene:8} {code:8} {C._par_label(code, p):15} "
                               f"FAILED: {r['error']}", flush=True)
-                    C.write_json(OUT, data)
+                    C.write_json(out, data)
 
     results, per_scene = aggregate(runs, scenes, active, pars)
     static = per_scene.get("static", {})
@@ -364,14 +384,18 @@ def main(argv=None):
                 ratio_liggghts=static.get("ratio_liggghts"),
                 speedup_2_threads=static.get("speedup_2_threads"),
                 loadavg_after=C.loadavg())
+    if base_rev:
+        data.update(ratio_base=static.get("ratio_base"),
+                    ratio_base_2=static.get("ratio_base_2"))
     # keep the headline numbers near the top of the file
     order = ["benchmark", "status", "date", "ratio_lammps", "ratio_liggghts",
-             "speedup_2_threads", "per_scene", "results", "skipped", "config", "versions",
-             "machine", "scene_dir", "loadavg_after", "runs"]
+             "speedup_2_threads", "ratio_base", "ratio_base_2", "per_scene", "results",
+             "skipped", "config", "versions", "machine", "scene_dir", "loadavg_after",
+             "runs"]
     data = {k: data[k] for k in order if k in data}
-    C.write_json(OUT, data)
+    C.write_json(out, data)
     print_table(data)
-    print(f"\nwrote {C.display_path(OUT)}")
+    print(f"\nwrote {C.display_path(out)}")
     return 0
 
 

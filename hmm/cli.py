@@ -23,7 +23,6 @@ imports this module.
 """
 
 import logging
-import math
 import signal
 import sys
 from pathlib import Path
@@ -357,6 +356,7 @@ def cmd_rve(args):
     from dem.simulation import SimulationError
 
     from .experiment import load_config, run_experiment
+    from .experiment_summary import report
 
     try:
         cfg = load_config(args.file)
@@ -376,97 +376,8 @@ def cmd_rve(args):
         return _report("hmm rve", f"the test failed: {exc}", 1)
     except KeyboardInterrupt:
         return _report("hmm rve", "interrupted", 130)
-    s = result.summary
-    kind = "biaxial" if s["dim"] == 2 else "triaxial"
-    files = ", ".join(str(p) for p in result.files)
-    if s["kind"] == "undrained":
-        pt = s["phase_transformation_mean_stress"]
-        print(f"hmm rve {args.file}: undrained {kind} test (constant volume), "
-              f"{s['n_particles']} {s['particles']}, from {s['confining']:.4g} Pa\n"
-              f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
-              f"  peak deviator            {s['peak_deviator']:.4g} Pa at axial strain "
-              f"{100 * s['peak_axial_strain']:.2f} % (p' = {s['peak_mean_stress']:.4g} "
-              f"Pa)\n"
-              + (f"  phase transformation     p' = {pt:.4g} Pa, q = "
-                 f"{s['phase_transformation_deviator']:.4g} Pa at axial strain "
-                 f"{100 * s['phase_transformation_axial_strain']:.2f} %\n"
-                 if math.isfinite(pt) else
-                 "  phase transformation     none (the excess pore pressure rises to the end)\n")
-              + f"  excess pore pressure     {s['final_excess_pore_pressure']:.4g} Pa "
-              f"at the end (largest {s['max_excess_pore_pressure']:.4g} Pa)\n"
-              + (f"  liquefied                at axial strain "
-                 f"{100 * s['liquefaction_axial_strain']:.2f} % (no effective stress "
-                 f"left; the test stopped there)\n" if s["liquefied"] else "")
-              + f"  q at the end / peak q    {s['softening']:.3f}\n"
-              f"  wall time                {s['wall_time']:.3g} s\n"
-              f"  output                   {files}")
-        return 0
-    if s["kind"] == "isotropic":
-        print(f"hmm rve {args.file}: isotropic compression to {s['p_max']:.4g} Pa and "
-              f"unloading, {s['n_particles']} {s['particles']}\n"
-              f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
-              f"  compression index        {s['compression_index']:.4g} (-de/dln p, "
-              f"loading)\n"
-              f"  swelling index           {s['swelling_index']:.4g} (unloading)\n"
-              f"  initial bulk modulus     {s['bulk_modulus']:.4g} Pa\n"
-              f"  volumetric strain        {100 * s['final_volumetric_strain']:.4f} % "
-              f"left after unloading\n"
-              f"  wall time                {s['wall_time']:.3g} s\n"
-              f"  output                   {files}")
-        return 0
-    if s["kind"] == "simple_shear":
-        print(f"hmm rve {args.file}: simple shear at {s['confining']:.4g} Pa normal "
-              f"stress, {s['n_particles']} {s['particles']}\n"
-              f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
-              f"  peak friction angle      {s['peak_friction_angle']:.2f} deg "
-              f"(tau/sigma_n = {s['peak_stress_ratio']:.4f} at shear strain "
-              f"{100 * s['peak_shear_strain']:.2f} %)\n"
-              f"  dilation angle at peak   {s['dilation_angle']:.2f} deg\n"
-              f"  late friction angle      {s['critical_friction_angle']:.2f} deg "
-              f"(last 20 %)\n"
-              f"  wall time                {s['wall_time']:.3g} s\n"
-              f"  output                   {files}")
-        return 0
-    if s["kind"] == "cyclic":
-        liq = (f"liquefied after {s['cycles_to_liquefaction']:.2f} cycles"
-               if s["liquefied"] else f"not liquefied in {s['cycles_run']:.2f} cycles")
-        print(f"hmm rve {args.file}: cyclic undrained {kind} test, strain amplitude "
-              f"{100 * s['strain_amplitude']:.3g} %, {s['n_particles']} "
-              f"{s['particles']}, from {s['confining']:.4g} Pa\n"
-              f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
-              f"  pore pressure ratio r_u  {s['final_pore_pressure_ratio']:.3f} at the "
-              f"end (largest {s['max_pore_pressure_ratio']:.3f})\n"
-              f"  {liq}\n"
-              f"  wall time                {s['wall_time']:.3g} s\n"
-              f"  output                   {files}")
-        return 0
-    if s["kind"] == "oedometric":
-        print(f"hmm rve {args.file}: oedometric test, {s['n_particles']} "
-              f"{s['particles']}, from {s['confining']:.4g} Pa\n"
-              f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
-              f"  K0                       {s['k0']:.4f} (second half; "
-              f"{s['final_k0']:.4f} at the end)\n"
-              f"  axial stress at the end  {s['final_axial_stress']:.4g} Pa\n"
-              f"  constrained modulus      {s['constrained_modulus']:.4g} Pa (last "
-              f"increment)\n"
-              f"  wall time                {s['wall_time']:.3g} s\n"
-              f"  output                   {files}")
-        return 0
-    lo = 0.8 * result.curves["axial_strain"][-1]
-    print(f"hmm rve {args.file}: drained {kind} test, {s['n_particles']} "
-          f"{s['particles']}, "
-          f"confining {s['confining']:.4g} Pa\n"
-          f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
-          f"  peak friction angle      {s['peak_friction_angle']:.2f} deg "
-          f"(q/p = {s['peak_stress_ratio']:.4f} at axial strain "
-          f"{100 * s['peak_axial_strain']:.2f} %)\n"
-          f"  dilatancy angle at peak  {s['dilatancy_angle']:.2f} deg\n"
-          f"  critical friction angle  {s['critical_friction_angle']:.2f} deg "
-          f"(mean over axial strain >= {100 * lo:.2f} %)\n"
-          f"  volumetric strain        {100 * s['final_volumetric_strain']:.3f} % "
-          f"at the end (contraction > 0)\n"
-          f"  wall time                {s['wall_time']:.3g} s\n"
-          f"  output                   {', '.join(str(p) for p in result.files)}")
+    print(report(args.file, result.summary, result.files,
+                 result.curves["axial_strain"][-1]))
     return 0
 
 

@@ -2,14 +2,16 @@
 
 Stress invariants, mobilised friction and dilatancy angles (the conventions are those of
 :mod:`hmm.experiment`: compression positive, the DEM stress itself positive in tension),
-and :func:`summarize`, which reduces the curves of one test to the numbers of its kind.
+and :func:`summarize`, which reduces the curves of one test to the numbers of its kind,
+and :func:`report`, the lines ``hmm rve`` prints of them.
 """
 
 import math
 
 import numpy as np
 
-__all__ = ["dilatancy_angle", "friction_angle", "grains", "stress_invariants", "summarize"]
+__all__ = ["dilatancy_angle", "friction_angle", "grains", "report", "stress_invariants",
+           "summarize"]
 
 
 def stress_invariants(stress):
@@ -223,3 +225,111 @@ def _summarize_cyclic(c, rve, confining, increment):
 _SUMMARIES = {"drained": _summarize, "undrained": _summarize_undrained,
               "oedometric": _summarize_oedometric, "isotropic": _summarize_isotropic,
               "simple_shear": _summarize_shear, "cyclic": _summarize_cyclic}
+
+
+# ------------------------------------------------------------------ the printed report
+def report(path, summary, files, final_axial_strain):
+    """The lines ``hmm rve`` prints for a test of ``path`` ended with ``summary``
+    (:func:`summarize`'s, with the test's ``kind``, ``dim`` and wall time), its output
+    ``files`` and the last axial strain of its curves."""
+    s = summary
+    head = f"hmm rve {path}: "
+    tail = (f"  wall time                {s['wall_time']:.3g} s\n"
+            f"  output                   {', '.join(str(p) for p in files)}")
+    lines = _REPORTS.get(s["kind"])
+    if lines is None:  # a drained test
+        return head + _drained_lines(s, final_axial_strain) + tail
+    return head + lines(s) + tail
+
+
+def _test_name(s):
+    return "biaxial" if s["dim"] == 2 else "triaxial"
+
+
+def _undrained_lines(s):
+    pt = s["phase_transformation_mean_stress"]
+    return (f"undrained {_test_name(s)} test (constant volume), "
+            f"{s['n_particles']} {s['particles']}, from {s['confining']:.4g} Pa\n"
+            f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
+            f"  peak deviator            {s['peak_deviator']:.4g} Pa at axial strain "
+            f"{100 * s['peak_axial_strain']:.2f} % (p' = {s['peak_mean_stress']:.4g} "
+            f"Pa)\n"
+            + (f"  phase transformation     p' = {pt:.4g} Pa, q = "
+               f"{s['phase_transformation_deviator']:.4g} Pa at axial strain "
+               f"{100 * s['phase_transformation_axial_strain']:.2f} %\n"
+               if math.isfinite(pt) else
+               "  phase transformation     none (the excess pore pressure rises to the "
+               "end)\n")
+            + f"  excess pore pressure     {s['final_excess_pore_pressure']:.4g} Pa "
+            f"at the end (largest {s['max_excess_pore_pressure']:.4g} Pa)\n"
+            + (f"  liquefied                at axial strain "
+               f"{100 * s['liquefaction_axial_strain']:.2f} % (no effective stress "
+               f"left; the test stopped there)\n" if s["liquefied"] else "")
+            + f"  q at the end / peak q    {s['softening']:.3f}\n")
+
+
+def _isotropic_lines(s):
+    return (f"isotropic compression to {s['p_max']:.4g} Pa and unloading, "
+            f"{s['n_particles']} {s['particles']}\n"
+            f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
+            f"  compression index        {s['compression_index']:.4g} (-de/dln p, "
+            f"loading)\n"
+            f"  swelling index           {s['swelling_index']:.4g} (unloading)\n"
+            f"  initial bulk modulus     {s['bulk_modulus']:.4g} Pa\n"
+            f"  volumetric strain        {100 * s['final_volumetric_strain']:.4f} % "
+            f"left after unloading\n")
+
+
+def _shear_lines(s):
+    return (f"simple shear at {s['confining']:.4g} Pa normal stress, "
+            f"{s['n_particles']} {s['particles']}\n"
+            f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
+            f"  peak friction angle      {s['peak_friction_angle']:.2f} deg "
+            f"(tau/sigma_n = {s['peak_stress_ratio']:.4f} at shear strain "
+            f"{100 * s['peak_shear_strain']:.2f} %)\n"
+            f"  dilation angle at peak   {s['dilation_angle']:.2f} deg\n"
+            f"  late friction angle      {s['critical_friction_angle']:.2f} deg "
+            f"(last 20 %)\n")
+
+
+def _cyclic_lines(s):
+    liq = (f"liquefied after {s['cycles_to_liquefaction']:.2f} cycles"
+           if s["liquefied"] else f"not liquefied in {s['cycles_run']:.2f} cycles")
+    return (f"cyclic undrained {_test_name(s)} test, strain amplitude "
+            f"{100 * s['strain_amplitude']:.3g} %, {s['n_particles']} "
+            f"{s['particles']}, from {s['confining']:.4g} Pa\n"
+            f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
+            f"  pore pressure ratio r_u  {s['final_pore_pressure_ratio']:.3f} at the "
+            f"end (largest {s['max_pore_pressure_ratio']:.3f})\n"
+            f"  {liq}\n")
+
+
+def _oedometric_lines(s):
+    return (f"oedometric test, {s['n_particles']} {s['particles']}, from "
+            f"{s['confining']:.4g} Pa\n"
+            f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
+            f"  K0                       {s['k0']:.4f} (second half; "
+            f"{s['final_k0']:.4f} at the end)\n"
+            f"  axial stress at the end  {s['final_axial_stress']:.4g} Pa\n"
+            f"  constrained modulus      {s['constrained_modulus']:.4g} Pa (last "
+            f"increment)\n")
+
+
+def _drained_lines(s, final_axial_strain):
+    lo = 0.8 * final_axial_strain
+    return (f"drained {_test_name(s)} test, {s['n_particles']} {s['particles']}, "
+            f"confining {s['confining']:.4g} Pa\n"
+            f"  initial void ratio       {s['initial_void_ratio']:.4f}\n"
+            f"  peak friction angle      {s['peak_friction_angle']:.2f} deg "
+            f"(q/p = {s['peak_stress_ratio']:.4f} at axial strain "
+            f"{100 * s['peak_axial_strain']:.2f} %)\n"
+            f"  dilatancy angle at peak  {s['dilatancy_angle']:.2f} deg\n"
+            f"  critical friction angle  {s['critical_friction_angle']:.2f} deg "
+            f"(mean over axial strain >= {100 * lo:.2f} %)\n"
+            f"  volumetric strain        {100 * s['final_volumetric_strain']:.3f} % "
+            f"at the end (contraction > 0)\n")
+
+
+_REPORTS = {"undrained": _undrained_lines, "isotropic": _isotropic_lines,
+            "simple_shear": _shear_lines, "cyclic": _cyclic_lines,
+            "oedometric": _oedometric_lines}

@@ -459,3 +459,28 @@ def test_keys_of_another_kind_are_refused(test, message):
     data["test"] = test
     with pytest.raises(SceneError, match=message):
         validate_config(data, "small.toml")
+
+
+def test_the_printed_report_of_each_kind_of_test():
+    """hmm rve's report: the drained test's critical state is the mean over the last 20 %
+    of the axial strain; an undrained test without a phase transformation says so, and
+    one that liquefied says where; every report ends with the wall time and files."""
+    from hmm.experiment_summary import report
+
+    s = {"n_particles": 60, "particles": "disks", "confining": 1e5, "dim": 2,
+         "initial_void_ratio": 0.2, "wall_time": 1.5, "peak_friction_angle": 23.4,
+         "peak_stress_ratio": 0.43, "peak_axial_strain": 0.02, "dilatancy_angle": 3.2,
+         "critical_friction_angle": 21.2, "final_volumetric_strain": -0.01}
+    text = report("t.toml", {**s, "kind": "drained"}, ["out/a.h5", "out/b.png"], 0.05)
+    assert text.startswith("hmm rve t.toml: drained biaxial test, 60 disks")
+    assert "(mean over axial strain >= 4.00 %)" in text
+    assert text.endswith("wall time                1.5 s\n"
+                         "  output                   out/a.h5, out/b.png")
+    und = {**s, "kind": "undrained", "dim": 3, "peak_deviator": 2e5, "peak_mean_stress": 1e5,
+           "phase_transformation_mean_stress": float("nan"),
+           "final_excess_pore_pressure": 5e4, "max_excess_pore_pressure": 6e4,
+           "liquefied": True, "liquefaction_axial_strain": 0.012, "softening": 0.1}
+    text = report("t.toml", und, [], 0.05)
+    assert "undrained triaxial test (constant volume)" in text
+    assert "phase transformation     none" in text
+    assert "liquefied                at axial strain 1.20 %" in text

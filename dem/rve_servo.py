@@ -25,7 +25,6 @@ from .contact.servo import (N_SETTINGS, N_STATE, SET_MAX_RELAX, SET_N_LOAD, SET_
                             SET_RELAX, SET_SERVOED, SET_SHEAR_TOL, SET_STALL_CHECKS,
                             SET_STRESS_TOL, SET_TAU, ST_BEST, ST_BOOSTS, ST_CHUNKS, ST_GAIN,
                             drive_check)
-from .scene_measures import never_check
 from .state import RelaxCheck, ServoDrive
 from .status import CAME_APART, NOT_RELAXED, OK, RELAXED
 
@@ -89,14 +88,10 @@ def _run(rve, check, progress, start, chunked):
     most = int(check.servo.settings[SET_N_LOAD] + check.servo.settings[SET_MAX_RELAX]
                + 2 * check.every)  # the checks end the drive before this
     piece = most if progress is None else PROGRESS_CHECKS * check.every
-    sim._check = check
-    try:
-        while code == OK and sim.step - start < most:
-            code = sim._steps(piece, False)
-            if progress is not None:
-                progress(sim.step - start)
-    finally:
-        sim._check = never_check(rve.dim)
+    while code == OK and sim.step - start < most:
+        code = sim.run_checked(check, piece, progress=False)
+        if progress is not None:
+            progress(sim.step - start)
     return code
 
 

@@ -98,15 +98,24 @@ class MeasureScene:
                            self.pair_state.fpair, check)
         start = self.step
         if code == OK and max_steps > 0:
-            self._check = check
-            try:
-                code = self._steps(max_steps, progress)
-            finally:
-                self._check = never_check(self.dim)
+            code = self.run_checked(check, max_steps, progress)
         out = check.out
         status = "relaxed" if code == RELAXED else "apart" if code == CAME_APART else "cap"
         return Relaxation(self.step - start, float(out[0]), int(out[1]), int(out[3]),
                           status)
+
+    def run_checked(self, check, n_steps, progress=None):
+        """Step up to ``n_steps`` (as :meth:`run`) with the loop making ``check``'s
+        checks (:class:`~dem.state.RelaxCheck`: a relaxation's, or an RVE's drive,
+        :mod:`dem.contact.servo`), the first after ``check.out[4]`` steps. Returns the
+        status of the check that stopped the run (``RELAXED``, ``CAME_APART``,
+        ``NOT_RELAXED``), or ``OK`` when the steps ran out. Spheres and disks."""
+        self._spheres_only("run_checked()")
+        self._check = check
+        try:
+            return self._steps(int(n_steps), progress)
+        finally:
+            self._check = never_check(self.dim)
 
     def contacts(self):
         """Touching contacts now, as a dict of arrays (see

@@ -36,9 +36,9 @@ from .relaxation import OUT_NEXT
  SET_STALL_CHECKS, SET_SERVOED, N_SETTINGS) = range(10)
 #: state: the servo's gain, its best error (in tolerances) and the checks since it
 #: last improved by 10 %, the sign of its last worst error, the gain doublings, the
-#: increment's steps done, the steps since the drive began, and the chunks logged
-(ST_GAIN, ST_BEST, ST_STALLED, ST_LAST_SIGN, ST_BOOSTS, ST_DONE_LOAD, ST_STEPS, ST_CHUNKS,
- N_STATE) = range(9)
+#: steps since the drive began (the increment's come first), and the chunks logged
+(ST_GAIN, ST_BEST, ST_STALLED, ST_LAST_SIGN, ST_BOOSTS, ST_STEPS, ST_CHUNKS,
+ N_STATE) = range(8)
 
 
 @kernel
@@ -133,7 +133,7 @@ def drive_check(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, lgrad, f
     out[3] += 1.0
     n_load = int(se[SET_N_LOAD])
     steps = int(st[ST_STEPS])
-    done_load = int(st[ST_DONE_LOAD])
+    done_load = min(steps, n_load)  # the increment's chunks run first
     lgrad[:, :] = 0.0
     servo_ok = True
     if servoed:
@@ -167,7 +167,5 @@ def drive_check(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, lgrad, f
     s.log_n[k] = n_chunk
     st[ST_CHUNKS] = k + 1
     st[ST_STEPS] = steps + n_chunk
-    if done_load < n_load:
-        st[ST_DONE_LOAD] = done_load + n_chunk
     out[OUT_NEXT] = n_chunk
     return OK

@@ -294,7 +294,7 @@ class Macro:
         finv, _ = _inverse_and_det(self._deformation(u))
         return self.to_gp(mul(self.basis.interpolate(du).grad, finv))
 
-    def _current(self, u):
+    def configuration(self, u):
         """``(F^-1, det F)`` at the quadrature points, as (d, d, ne, nq), (ne, nq)."""
         return _inverse_and_det(self._deformation(u))
 
@@ -304,7 +304,7 @@ class Macro:
         configuration of ``u`` (finite), for Cauchy stresses (n_gp, d, d) [N]."""
         if u is None or not self.finite:
             return asm(_internal, self.basis, sigma=self.from_gp(sigma))
-        finv, jac = self._current(u)
+        finv, jac = self.configuration(u)
         return asm(_internal_finite, self.basis, sigma=self.from_gp(sigma), Finv=finv,
                    J=jac)
 
@@ -320,7 +320,7 @@ class Macro:
         else:
             if sigma is None:
                 raise ValueError("the finite-strain stiffness needs the stresses")
-            finv, jac = self._current(u)
+            finv, jac = self.configuration(u)
             g = np.einsum("nac...,cb...->nab...", grads, finv)  # grad_x = grad_X F^-1
             c, dx = self.from_gp(spatial_tangent(sigma, tangent)), self.basis.dx * jac
         cg = np.einsum("abkl...,jkl...->jab...", c, g)
@@ -393,13 +393,13 @@ class Macro:
         t = b * np.ones(self.basis.dx.shape)
         if u is None or not self.finite:
             return asm(_vector_load, self.basis, t=t)
-        _, jac = self._current(u)
+        _, jac = self.configuration(u)
         return asm(_current_volume_load, self.basis, t=t, J=jac)
 
     def body_force_stiffness(self, density_g, u):
         """``d f / d u`` of a body force per unit current volume (sparse)."""
         b = np.asarray(density_g, dtype=np.float64)[:, None, None]
-        finv, jac = self._current(u)
+        finv, jac = self.configuration(u)
         return asm(_current_volume_stiffness, self.basis,
                    t=b * np.ones(self.basis.dx.shape), Finv=finv, J=jac)
 

@@ -27,9 +27,20 @@ the micro models' tangents: one iteration with a linear micro model, and with a 
 RVE the same iterations as a dry step. Boundaries are impermeable unless drained
 (a prescribed pore pressure) or given a flux.
 
-:class:`PorousMacro` assembles the fluid's matrices once; :class:`BiotSolver` runs the
-time steps on :class:`TimeSchedule`, cutting a step that does not converge exactly as
-the dry :class:`~hmm.coupling.Solver` does.
+Under finite kinematics (updated Lagrangian, :mod:`hmm.macro`) every integral is on
+the configuration of the trial displacement: the internal force is ``int (sigma' -
+alpha p I) : grad_x v dv``, the fluid's volume term the change of the mixture's
+volume over the step, ``int q alpha (J - J_n) dV`` (exact for any size of step), the
+storage and the flow per unit current volume with ``grad_x``; the Newton matrix adds
+the geometric stiffness of the total stress and the load stiffness of follower loads
+to ``K``, and ``Q`` of the trial configuration is both off-diagonal blocks (the
+derivative of the volume term is ``Q^T``). The change of ``S`` and ``H`` with the
+configuration is left out of the matrix (their terms are small beside ``Q``'s):
+Newton converges on the same residual.
+
+:class:`~hmm.porous_field.PorousMacro` assembles the fluid's matrices;
+:class:`BiotSolver` runs the time steps on :class:`TimeSchedule`, cutting a step that
+does not converge exactly as the dry :class:`~hmm.coupling.Solver` does.
 """
 
 import logging
@@ -38,21 +49,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy import sparse
-from skfem import (
-    Basis,
-    BilinearForm,
-    ElementHex1,
-    ElementQuad1,
-    ElementTetP1,
-    ElementTriP1,
-    FacetBasis,
-    LinearForm,
-    asm,
-)
-from skfem.helpers import div, dot, grad, mul
 
 from .coupling import Solver, SolverError, _NotConverged, free_part, linear_solve, tie_map
 from .farm import MicroFailure
+from .porous_field import PAIRS, PERMEABILITY_LAWS, Fluid, PorousMacro
+
+__all__ = ["COUPLINGS", "PAIRS", "PERMEABILITY_LAWS", "PRESSURE_BOUND", "BiotSolver",
+           "Fluid", "PorousMacro", "TimeSchedule"]
 
 log = logging.getLogger(__name__)
 
@@ -60,247 +63,8 @@ log = logging.getLogger(__name__)
 #: (:attr:`BiotSolver.pressure_bound`) is a diverging solution: the step is cut
 PRESSURE_BOUND = 1e3
 
-#: how the permeability follows the porosity (:class:`Fluid`)
-PERMEABILITY_LAWS = ("constant", "kozeny_carman")
-
 #: how the two fields are solved in each iteration (:class:`BiotSolver`)
 COUPLINGS = ("monolithic", "fixed_stress")
-
-#: displacement element -> (pressure element name, class): quadratic displacement,
-#: linear pressure on the same mesh
-PAIRS = {
-    "quad8": ("quad1", ElementQuad1),
-    "quad2": ("quad1", ElementQuad1),
-    "tri2": ("tri1", ElementTriP1),
-    "hex20": ("hex1", ElementHex1),
-    "hex27": ("hex1", ElementHex1),
-    "tet10": ("tet1", ElementTetP1),
-}
-
-
-@BilinearForm
-def _coupling(p, v, w):
-    # alpha p div v: rows displacement tests, columns pressures
-    return w.alpha * p * div(v)
-
-
-@BilinearForm
-def _storage(p, q, w):
-    return w.storage * p * q
-
-
-@BilinearForm
-def _weighted_mass(p, q, w):
-    return w.beta * p * q
-
-
-@BilinearForm
-def _flow(p, q, w):
-    return dot(grad(q), mul(w.kappa, grad(p)))
-
-
-@LinearForm
-def _inflow(q, w):
-    return w.flux * q
-
-
-@dataclass(frozen=True)
-class Fluid:
-    """The pore fluid and the mixture's hydraulic constants (SI units).
-
-    Parameters
-    ----------
-    permeability : float or (d, d) array
-        Intrinsic permeability k [m^2] (isotropic, or a symmetric tensor).
-    viscosity : float
-        Dynamic viscosity of the fluid mu [Pa s] (water: 1e-3).
-    bulk_modulus : float
-        Fluid bulk modulus K_f [Pa] (water: 2.2e9; inf: incompressible).
-    porosity : float
-        Porosity n [-], which weighs the fluid's compressibility in the storage.
-    biot : float
-        Biot's coefficient alpha (1: incompressible grains).
-    solid_bulk_modulus : float
-        Bulk modulus of the grains K_s [Pa] (inf: incompressible, alpha = 1).
-    initial_pressure : float
-        Pore pressure at the start [Pa], uniform.
-    permeability_law : str
-        ``"constant"``, or ``"kozeny_carman"``: ``k`` scales with ``n^3 / (1 -
-        n)^2`` from its value at ``porosity``, ``n = 1 - (1 - n_0) / (1 + tr eps)``
-        at each Gauss point (the grains keep their volume); the storage keeps ``n_0``.
-    """
-
-    permeability: object
-    viscosity: float = 1e-3
-    bulk_modulus: float = 2.2e9
-    porosity: float = 0.4
-    biot: float = 1.0
-    solid_bulk_modulus: float = math.inf
-    initial_pressure: float = 0.0
-    permeability_law: str = "constant"
-
-    def __post_init__(self):
-        k = np.asarray(self.permeability, dtype=np.float64)
-        if k.ndim == 0:
-            ok = math.isfinite(float(k)) and float(k) > 0.0
-        else:
-            ok = (k.ndim == 2 and k.shape[0] == k.shape[1] and np.allclose(k, k.T)
-                  and np.all(np.linalg.eigvalsh(k) > 0.0))
-        if not ok:
-            raise ValueError("permeability must be positive: a number or a symmetric "
-                             "positive definite tensor [m^2]")
-        if not (self.viscosity > 0.0 and math.isfinite(self.viscosity)):
-            raise ValueError(f"viscosity must be positive, got {self.viscosity}")
-        if not self.bulk_modulus > 0.0 or not self.solid_bulk_modulus > 0.0:
-            raise ValueError("bulk moduli must be positive (inf: incompressible)")
-        if not 0.0 < self.porosity < 1.0:
-            raise ValueError(f"porosity must be in (0, 1), got {self.porosity}")
-        if not self.porosity <= self.biot <= 1.0:
-            raise ValueError(f"biot must be in [porosity, 1], got {self.biot}")
-        if self.permeability_law not in PERMEABILITY_LAWS:
-            raise ValueError(f"permeability_law must be \"constant\" or "
-                             f"\"kozeny_carman\", got {self.permeability_law!r}")
-
-    @property
-    def storage(self):
-        """``1/M = n/K_f + (alpha - n)/K_s`` [1/Pa] (0: incompressible)."""
-        return self.porosity / self.bulk_modulus \
-            + (self.biot - self.porosity) / self.solid_bulk_modulus
-
-    def mobility(self, dim):
-        """``kappa = k / mu`` as a (dim, dim) tensor [m^2/(Pa s)]."""
-        k = np.asarray(self.permeability, dtype=np.float64)
-        if k.ndim == 0:
-            k = float(k) * np.eye(dim)
-        if k.shape != (dim, dim):
-            raise ValueError(f"permeability tensor is {k.shape[0]}x{k.shape[1]}, the "
-                             f"mesh {dim}D")
-        return k / self.viscosity
-
-
-class PorousMacro:
-    """The pressure field beside a :class:`~hmm.macro.Macro`, and the fluid's
-    matrices: ``Q`` (coupling), ``S`` (storage) and ``H`` (flow).
-
-    Parameters
-    ----------
-    macro : Macro
-        Small kinematics, a quadratic element of :data:`PAIRS`.
-    fluid : Fluid
-    drained : dict, optional
-        ``{boundary: pore pressure [Pa]}`` held from the first step on.
-    inflow : dict, optional
-        ``{boundary: flux [m/s]}``, fluid volume entering per unit area and time.
-    """
-
-    def __init__(self, macro, fluid, drained=None, inflow=None):
-        if macro.element not in PAIRS:
-            raise ValueError(
-                f"pore pressure needs a quadratic displacement element "
-                f"({', '.join(PAIRS)}) to pair with linear pressures; "
-                f"\"{macro.element}\" would pair equal orders, whose pressure "
-                f"oscillates (no inf-sup stability)")
-        if macro.finite:
-            raise ValueError("pore pressure runs under small kinematics for now: set "
-                             "[solver] kinematics = \"small\"")
-        self.macro = macro
-        self.fluid = fluid
-        self.p_element = PAIRS[macro.element][0]
-        # the same quadrature as the displacements: Gauss point data line up
-        self.pbasis = Basis(macro.mesh, PAIRS[macro.element][1](), intorder=macro.order)
-        self.n_p = self.pbasis.N
-        d = macro.dim
-        self.Q = asm(_coupling, self.pbasis, macro.basis, alpha=fluid.biot).tocsr()
-        self.S = asm(_storage, self.pbasis, storage=fluid.storage).tocsr()
-        self.kappa = fluid.mobility(d)
-        self.H = asm(_flow, self.pbasis,
-                     kappa=self.kappa[:, :, None, None]).tocsr()
-        self.drained = dict(drained or {})
-        self.inflow = dict(inflow or {})
-        for name in (*self.drained, *self.inflow):
-            if name not in macro.mesh.boundaries:
-                raise KeyError(name)
-        dofs = [self.pbasis.get_dofs(b).all() for b in self.drained]
-        vals = [np.full(k.size, float(v)) for k, v in
-                zip(dofs, self.drained.values(), strict=True)]
-        if dofs:
-            dofs, first = np.unique(np.concatenate(dofs), return_index=True)
-            self.p_dofs, self.p_values = dofs, np.concatenate(vals)[first]
-        else:
-            self.p_dofs, self.p_values = np.zeros(0, np.int64), np.zeros(0)
-        self.f_q = np.zeros(self.n_p)
-        for b, flux in self.inflow.items():
-            fb = FacetBasis(macro.mesh, self.pbasis.elem,
-                            facets=macro.mesh.boundaries[b], intorder=macro.order)
-            self.f_q += asm(_inflow, fb, flux=float(flux))
-
-    def consolidation_coefficient(self, tangent):
-        """``c_v = kappa / (1/M + alpha^2 / M_c)`` [m^2/s] of the micro models'
-        ``tangent`` (n_gp, d, d, d, d): ``kappa`` the mean eigenvalue of the
-        mobility, ``M_c`` the constrained modulus ``C_iiii``, averaged over axes
-        and Gauss points."""
-        d = self.macro.dim
-        m_c = float(np.mean([np.mean(tangent[:, i, i, i, i]) for i in range(d)]))
-        kappa = float(np.trace(self.kappa)) / d
-        alpha = self.fluid.biot
-        return kappa / (self.fluid.storage + alpha * alpha / max(m_c, 1e-300))
-
-    def oscillation_bound(self, tangent):
-        """Vermeer & Verruijt's lower bound of a first time step [s], ``h^2 / (6
-        c_v)`` with ``h`` the shortest element edge: a shorter step after a sudden
-        load or a jump of a drained pressure leaves the pressure's boundary layer
-        thinner than an element, and the pressure overshoots next to it."""
-        h = self.shortest_edge()
-        return h * h / (6.0 * self.consolidation_coefficient(tangent))
-
-    def shortest_edge(self):
-        """The shortest element edge of the mesh [m]."""
-        mesh = self.macro.mesh
-        edges = mesh.facets if self.macro.dim == 2 else mesh.edges
-        return float(np.min(np.linalg.norm(mesh.p[:, edges[0]] - mesh.p[:, edges[1]],
-                                           axis=0)))
-
-    def permeability_ratio(self, u):
-        """``k / k_0`` at the Gauss points (n_gp,) for the displacement ``u``: 1, or
-        Kozeny-Carman's ``[n^3 / (1 - n)^2] / [n_0^3 / (1 - n_0)^2]``."""
-        if self.fluid.permeability_law == "constant" or u is None:
-            return np.ones(self.macro.n_gp)
-        n0 = self.fluid.porosity
-        jac = 1.0 + np.trace(self.macro.strain(u), axis1=1, axis2=2)
-        n = np.clip(1.0 - (1.0 - n0) / jac, 1e-6, 1.0 - 1e-6)
-        return (n ** 3 / (1.0 - n) ** 2) / (n0 ** 3 / (1.0 - n0) ** 2)
-
-    def flow_matrix(self, u=None):
-        """``H = int grad q . kappa grad p`` (sparse) for the displacement ``u`` (the
-        assembled one of the initial porosity under a constant permeability)."""
-        if self.fluid.permeability_law == "constant" or u is None:
-            return self.H
-        ratio = self.macro.from_gp(self.permeability_ratio(u))
-        return asm(_flow, self.pbasis,
-                   kappa=self.kappa[:, :, None, None] * ratio).tocsr()
-
-    def fixed_stress_mass(self, tangent):
-        """``int q alpha^2 / K_dr p`` (sparse): the fixed-stress split's estimate of
-        the volume change per pressure change, ``K_dr`` each Gauss point's drained
-        bulk modulus ``C_iijj / d^2`` from the micro ``tangent`` (n_gp, d, d, d, d)."""
-        d = self.macro.dim
-        k_dr = np.einsum("giijj->g", tangent) / (d * d)
-        beta = self.fluid.biot ** 2 / np.maximum(k_dr, 1e-300)
-        return asm(_weighted_mass, self.pbasis, beta=self.macro.from_gp(beta)).tocsr()
-
-    def nodal_pressure(self, p):
-        """Pore pressure at the mesh vertices (n_vertices,) [Pa]."""
-        return p[self.pbasis.nodal_dofs[0]]
-
-    def gauss_pressure(self, p):
-        """Pore pressure at the Gauss points (n_gp,) [Pa]."""
-        return self.macro.to_gp(self.pbasis.interpolate(p))
-
-    def darcy_flux(self, p, u=None):
-        """Darcy's flux ``w = -kappa grad p`` at the Gauss points (n_gp, d) [m/s] (the
-        permeability of the displacement ``u`` under Kozeny-Carman)."""
-        g = self.macro.to_gp(self.pbasis.interpolate(p).grad)  # (n_gp, d)
-        return -(g @ self.kappa.T) * self.permeability_ratio(u)[:, None]
 
 
 @dataclass(frozen=True)
@@ -365,10 +129,10 @@ class BiotSolver(Solver):
     """
 
     def __init__(self, porous, farm, supports, schedule, f_const=None, f_ramp=None,
-                 settings=None, coupling="monolithic"):
+                 settings=None, coupling="monolithic", loads=()):
         if supports.tie_values:
             raise ValueError("a saturated problem takes no periodic boundaries")
-        super().__init__(porous.macro, farm, supports, f_const, f_ramp, settings)
+        super().__init__(porous.macro, farm, supports, f_const, f_ramp, settings, loads)
         if coupling not in COUPLINGS:
             raise ValueError(f"coupling must be \"monolithic\" or \"fixed_stress\", got "
                              f"{coupling!r}")
@@ -413,54 +177,87 @@ class BiotSolver(Solver):
         return super().advance(dt, on_iteration)
 
     def f_ext(self, t, u=None):
-        return self.f_const + self.schedule.load_factor(t) * self.f_ramp
+        """External nodal forces [N] at time ``t`` [s] (on the configuration of ``u``
+        for configuration-dependent loads)."""
+        lam = self.schedule.load_factor(t)
+        f = self.f_const + lam * self.f_ramp
+        for load in self.loads:
+            f = f + load.force(self.macro, self.u if u is None else u, lam)
+        return f
+
+    def _total(self, sig, p):
+        """``sigma' - alpha p I`` at the Gauss points for the pressures ``p``."""
+        pg = self.porous.gauss_pressure(p)
+        return sig - self.porous.fluid.biot * pg[:, None, None] * np.eye(self.macro.dim)
 
     def total_stress(self):
         """The committed total stress ``sigma' - alpha p I`` at the Gauss points
         (n_gp, d, d) [Pa]."""
-        p = self.porous.gauss_pressure(self.p)
-        return self.sigma - self.porous.fluid.biot * p[:, None, None] \
-            * np.eye(self.macro.dim)
+        return self._total(self.sigma, self.p)
 
     def _unbalanced(self):
         """As :meth:`Solver._unbalanced`, from the total stress: the reactions."""
-        return self.macro.internal_force(self.sigma) - self.porous.Q @ self.p \
-            - self.f_ext(self.t)
+        return self.macro.internal_force(self.sigma, self.u) \
+            - self.porous.coupling_matrix(self.u) @ self.p - self.f_ext(self.t)
 
-    def _residual(self, sig, du, p, dt, t1, flow):
-        """``(R_u, R_p)`` and the reference norms of their terms (``flow``: the flow
-        matrix ``H`` of the trial configuration)."""
+    def _fields(self, u1):
+        """The fluid's matrices on the configuration of ``u1``: ``(Q, S, H)``."""
         por = self.porous
-        f_int = self.macro.internal_force(sig)
-        f_ext = self.f_ext(t1)
-        r_u = f_int - por.Q @ p - f_ext
-        mass = (por.Q.T @ du, por.S @ (p - self.p), dt * (flow @ p), dt * por.f_q)
+        return por.coupling_matrix(u1), por.storage_matrix(u1), por.flow_matrix(u1)
+
+    def _mechanics(self, tangent, sig, p, u1, t1):
+        """The stiffness of the displacements on the configuration of ``u1``: the
+        micro models' (small), or with the geometric stiffness of the total stress
+        and the load stiffness of configuration-dependent loads (finite)."""
+        if not self.macro.finite:
+            return self.macro.stiffness(tangent)
+        return self.stiffness(tangent, self._total(sig, p), u1,
+                              self.schedule.load_factor(t1))
+
+    def _residual(self, sig, du, p, dt, t1, fields):
+        """``(R_u, R_p)`` and the reference norms of their terms (``fields``: the
+        fluid's matrices ``(Q, S, H)`` of the trial configuration)."""
+        por = self.porous
+        q, s, flow = fields
+        u1 = self.u + du
+        f_int = self.macro.internal_force(sig, u1)
+        f_ext = self.f_ext(t1, u1)
+        r_u = f_int - q @ p - f_ext
+        mass = (por.volume_change(self.u, du), s @ (p - self.p), dt * (flow @ p),
+                dt * por.f_q)
         r_p = -(mass[0] + mass[1] + mass[2] - mass[3])
         ref_u = max(float(np.linalg.norm(f_int)), float(np.linalg.norm(f_ext)),
-                    float(np.linalg.norm(por.Q @ p)), 1e-300)
-        ref_p = max(max(float(np.linalg.norm(m)) for m in mass), 1e-300)
+                    float(np.linalg.norm(q @ p)), 1e-300)
+        # the mass balance's scale: its terms, and the gross volume change the step
+        # makes, |Q|^T |du|: in an undrained sample of incompressible constituents
+        # every term vanishes at the solution (the volume change is the constraint)
+        gross = abs(q).T @ np.abs(du)
+        ref_p = max(max(float(np.linalg.norm(m)) for m in mass),
+                    float(np.linalg.norm(gross)), 1e-300)
         return r_u, r_p, ref_u, ref_p
 
-    def _matrix(self, k, dt, flow):
-        """The whole Newton matrix from the stiffness ``k`` and flow matrix."""
-        por = self.porous
-        return sparse.bmat([[k, -por.Q], [-por.Q.T, -(por.S + dt * flow)]],
-                           format="csr")
+    @staticmethod
+    def _matrix(k, dt, fields):
+        """The whole Newton matrix from the stiffness ``k`` and the fluid's
+        matrices ``(Q, S, H)``."""
+        q, s, flow = fields
+        return sparse.bmat([[k, -q], [-q.T, -(s + dt * flow)]], format="csr")
 
-    def _correction(self, k, r, tangent, dt, flow):
+    def _correction(self, k, r, tangent, dt, fields):
         """The correction of ``(du, p)`` for the residual ``r`` (``k``: the stiffness
         of ``tangent``): Newton on the whole matrix (monolithic), or the fixed-stress
         split: the flow first, its volume change estimated from the pressure change
         at a fixed mean total stress (``alpha^2 / K_dr dp``), then the mechanics at
         the new pressure."""
         if self.coupling == "monolithic":
-            return linear_solve(self._matrix(k, dt, flow), -r, self._fixed,
+            return linear_solve(self._matrix(k, dt, fields), -r, self._fixed,
                                 tie=self._tie_up)
         por, n_u = self.porous, self.macro.n_dofs
+        q, s, flow = fields
         r_u, r_p = r[:n_u], r[n_u:]
-        a_p = por.S + por.fixed_stress_mass(tangent) + dt * flow
+        a_p = s + por.fixed_stress_mass(tangent) + dt * flow
         dp = linear_solve(a_p, r_p, por.p_dofs)
-        du = linear_solve(k, -(r_u - por.Q @ dp), self.supports.dofs, tie=self._tie)
+        du = linear_solve(k, -(r_u - q @ dp), self.supports.dofs, tie=self._tie)
         return np.concatenate([du, dp])
 
     def _check_pressure(self, p):
@@ -487,17 +284,20 @@ class BiotSolver(Solver):
         z[n_u + por.p_dofs] = por.p_values
         # predictor from the committed tangents: the residual at z, linearised about
         # the committed state z0, and one correction
-        flow = por.flow_matrix(self.u)
-        r_u, r_p, _, _ = self._residual(self.sigma, np.zeros(n_u), self.p, h, t1, flow)
-        k = macro.stiffness(self.tangent)
+        fields = self._fields(self.u)
+        r_u, r_p, _, _ = self._residual(self.sigma, np.zeros(n_u), self.p, h, t1, fields)
+        k = self._mechanics(self.tangent, self.sigma, self.p, self.u, t1)
         z0 = np.concatenate([np.zeros(n_u), self.p])
-        r = np.concatenate([r_u, r_p]) + self._matrix(k, h, flow) @ (z - z0)
-        z = z + self._correction(k, r, self.tangent, h, flow)
+        r = np.concatenate([r_u, r_p]) + self._matrix(k, h, fields) @ (z - z0)
+        z = z + self._correction(k, r, self.tangent, h, fields)
         growth, last = 0, math.inf
         prev, omega = None, 1.0
         for it in range(1, st.max_iterations + 1):
             du, p = z[:n_u], z[n_u:]
             self._check_pressure(p)
+            inverted = self._inverted(du)
+            if inverted is not None:
+                raise _NotConverged(inverted)
             grad = macro.increment_gradient(self.u, du)
             try:
                 sig, c = farm.trial(grad)
@@ -507,15 +307,15 @@ class BiotSolver(Solver):
                     raise SolverError(f"time step at t = {self.t:.6g} s stopped: "
                                       f"{err}") from err
                 raise _NotConverged(str(err)) from err
-            flow = por.flow_matrix(self.u + du)
-            r_u, r_p, ref_u, ref_p = self._residual(sig, du, p, h, t1, flow)
+            fields = self._fields(self.u + du)
+            r_u, r_p, ref_u, ref_p = self._residual(sig, du, p, h, t1, fields)
             ru = float(np.linalg.norm(free_part(r_u, self.free, self._tie)))
             rp = float(np.linalg.norm(r_p[self._free_p]))
             rel = max(ru / ref_u, rp / ref_p)
             if not math.isfinite(rel):
                 raise _NotConverged("non-finite residual")
-            dz = self._correction(macro.stiffness(c), np.concatenate([r_u, r_p]), c, h,
-                                  flow)
+            k = self._mechanics(c, sig, p, self.u + du, t1)
+            dz = self._correction(k, np.concatenate([r_u, r_p]), c, h, fields)
             dn = float(np.linalg.norm(dz[:n_u]))
             pn = float(np.linalg.norm(dz[n_u:]))
             if st.check_residual:

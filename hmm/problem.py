@@ -310,7 +310,6 @@ def _check_fluid(ctx, out, data):
                  f"to pair with linear pore pressures, not \"{out['mesh']['element']}\"",
                  "[mesh]")
     if data.get("solver", {}).get("kinematics") is None:
+        # small by default: the closed forms of saturated problems (Terzaghi, Mandel)
+        # are small-strain theories; finite on request
         out["solver"]["kinematics"] = "small"
-    elif out["solver"]["kinematics"] != "small":
-        ctx.fail("a saturated problem runs under kinematics = \"small\" for now",
-                 "[solver]")

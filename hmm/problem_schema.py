@@ -256,8 +256,8 @@ SCHEMA = {
                          "equations, hmm.porous): with it the micro models give the "
                          "effective stress, [time] sets the steps in seconds and "
                          "[[drainage]] the hydraulic boundaries. Needs a quadratic "
-                         "element (quad8 quad2 tri2 hex20 hex27 tet10) and small "
-                         "kinematics.", keys={
+                         "element (quad8 quad2 tri2 hex20 hex27 tet10); [solver] "
+                         "kinematics is \"small\" unless set.", keys={
         "permeability": Key("tensor", "m^2", range=POSITIVE,
                             doc="Intrinsic permeability k (required): a number "
                                 "(isotropic) or a d x d symmetric positive definite "

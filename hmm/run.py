@@ -200,7 +200,7 @@ def _solve(problem, macro, farm, supports, loading, out, progress, say, t0,
         ends = np.arange(1, n + 1) / n  # the load factor at the end of each step
     else:
         solver = BiotSolver(porous, farm, supports, schedule, f_const, f_ramp, settings,
-                            st["coupling"])
+                            st["coupling"], loads)
         ends = schedule.times()  # [s]
     first = 1
     if ck is None:

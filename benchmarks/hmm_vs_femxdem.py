@@ -228,14 +228,22 @@ def problem(cells, steps, out_dir, relax=True, check_residual=True):
 def run_ours(cells, steps, relax=True, check_residual=False):
     """Our solve of the problem (every rank calls this under mpiexec); rank 0
     returns the measurements, the others None."""
+    out_dir = SCRATCH / f"ours_{_name(cells)}{'' if relax else '_fixed'}"
+    return run_timed(problem(cells, steps, out_dir, relax, check_residual), out_dir)
+
+
+def run_timed(prob, out_dir):
+    """Run the validated problem ``prob`` with the solver's load steps and the farm's
+    calls timed (every rank calls this under mpiexec): on rank 0 the measurements,
+    with the Gauss-point weighted mean stress after every step (``mean_stress``,
+    the micro models' stress: effective in a saturated run, whose mean pore pressure
+    is ``mean_pore_pressure``) and volumetric strain; None on the others."""
     import h5py
     import numpy as np
 
     from hmm import coupling, farm
     from hmm.run import run_problem
 
-    out_dir = SCRATCH / f"ours_{_name(cells)}{'' if relax else '_fixed'}"
-    prob = problem(cells, steps, out_dir, relax, check_residual)
     trials, step_walls = [], []
     for cls in (farm.SerialFarm, farm.MPIFarm):  # rank 0 drives the farm via trial()
         def timed_trial(self, deps, _orig=cls.trial):
@@ -260,8 +268,13 @@ def run_ours(cells, steps, relax=True, check_residual=False):
         return None
     with h5py.File(out_dir / "fields.h5", "r") as f:
         w = f["gauss/weights"][()]
-        stress = [(np.einsum("g,gij->ij", w, f["steps"][k]["gauss/stress"][()])
-                   / w.sum()).tolist() for k in sorted(f["steps"])]
+        frames = [f["steps"][k] for k in sorted(f["steps"], key=int)]
+        stress = [(np.einsum("g,gij->ij", w, g["gauss/stress"][()]) / w.sum()).tolist()
+                  for g in frames]
+        pore = [float(w @ g["gauss/pore_pressure"][()] / w.sum()) for g in frames
+                if "gauss/pore_pressure" in g]
+        volume = [float(w @ np.trace(g["gauss/strain"][()], axis1=1, axis2=2) / w.sum())
+                  for g in frames]
         top = f["curve/force/top"][()][:, 1].tolist()
     solve = trials[1:]  # the first trial is the solver's initial tangent
     _, comm = farm.mpi_world()
@@ -274,7 +287,9 @@ def run_ours(cells, steps, relax=True, check_residual=False):
             "stage_cost": sum(t["cost"] for t in solve),
             "calls": len(solve) * s["gauss_points"],
             "dem_steps_per_call": float(np.mean([x for t in solve for x in t["steps"]])),
-            "mean_stress": stress, "top_force": top}
+            "mean_stress": stress, "top_force": top,
+            "mean_volumetric_strain": volume,
+            **({"mean_pore_pressure": pore} if pore else {})}
 
 
 def ours(cells, steps, procs, relax=True, check_residual=False):
@@ -341,6 +356,24 @@ with open(os.environ["HVF_OUT"], "w") as fh:
 #: the FEMxDEM driver (run by Debian's python3 in PEER_DIR): the biaxial problem on
 #: msFEM2D.MultiScale or the triaxial one on msFEM3D.MultiScale, settings from the
 #: JSON file named by HVF_CONFIG
+#: the part of every FEMxDEM driver after ``import ... as ms``: a pool that maps in
+#: this process when one process is asked for (FEMxDEM's get_pool refuses one)
+DRIVER_POOL = r'''
+
+class InProcessPool:
+    """FEMxDEM's pool interface, mapping in this process (its get_pool refuses one)."""
+
+    def map(self, fn, items):
+        return [fn(x) for x in items]
+
+    def close(self):
+        pass
+
+
+if cfg["processes"] == 1:
+    ms.get_pool = lambda mpi=False, threads=1: InProcessPool()
+'''
+
 FEMXDEM_DRIVER = r'''
 import json, os, sys, time
 import numpy as np
@@ -361,21 +394,7 @@ else:
                  "getFabric"):
         setattr(ms, name, getattr(simDEM, name + "3D"))
     options = {}
-
-
-class InProcessPool:
-    """FEMxDEM's pool interface, mapping in this process (its get_pool refuses one)."""
-
-    def map(self, fn, items):
-        return [fn(x) for x in items]
-
-    def close(self):
-        pass
-
-
-if cfg["processes"] == 1:
-    ms.get_pool = lambda mpi=False, threads=1: InProcessPool()
-if dim == 2:
+''' + DRIVER_POOL + r'''if dim == 2:
     lx, ly = cfg["size"]
     nx, ny = cfg["cells"]
     dom = Rectangle(l0=lx, l1=ly, n0=nx, n1=ny, order=2, integrationOrder=2)

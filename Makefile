@@ -81,6 +81,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/hmm_vs_femxdem.py
 	DIM=3 $(BIN)/python benchmarks/hmm_vs_femxdem.py
 	$(BIN)/python benchmarks/hmm_vs_femxdem_up.py
+	$(BIN)/python benchmarks/undrained_biaxial.py
 	$(BIN)/python benchmarks/hmm_tangent_adaptive.py
 	$(BIN)/python benchmarks/pd_lammps.py
 	$(BIN)/python benchmarks/pd_kirsch.py

@@ -314,6 +314,35 @@ def test_footing_consolidation_example_at_small_size(tmp_path):
     assert pmax[-1] < 0.05e5  # and has drained at the end
 
 
+def test_undrained_biaxial_example_at_small_size(tmp_path):
+    """examples/biaxial_undrained.toml at small size (1 x 2 cells, 20-disk RVEs, 3
+    time steps to 0.6 %): the sealed sample keeps its volume but for the water's
+    compression, ``tr eps = -n (p - p_0) / K_f`` on average to 1e-3, and its first
+    steps contract the packing: the pore pressure rises above its 100 kPa."""
+    from hmm.problem import load_problem
+
+    text = (ROOT / "examples" / "biaxial_undrained.toml").read_text()
+    for a, b in (("cells = [2, 4]", "cells = [1, 2]"), ("count = 100", "count = 20"),
+                 ("steps = 25 ", "steps = 3 "), ("end = 5.0 ", "end = 0.6 "),
+                 ("ramp = 5.0 ", "ramp = 0.6 "), ("value = -0.005 ", "value = -0.0006 ")):
+        assert a in text
+        text = text.replace(a, b)
+    (tmp_path / "u.toml").write_text(text)
+    problem = load_problem(tmp_path / "u.toml")
+    out = run_problem(problem, tmp_path / "out", progress=False)
+    fl = problem["fluid"]
+    with h5py.File(tmp_path / "out" / "fields.h5", "r") as f:
+        w = f["gauss/weights"][()]
+        frames = [f["steps"][k] for k in sorted(f["steps"])][1:]
+        for g in frames:
+            volume = w @ np.trace(g["gauss/strain"][()], axis1=1, axis2=2)
+            excess = w @ (g["gauss/pore_pressure"][()] - fl["initial_pressure"])
+            assert volume == pytest.approx(-fl["porosity"] / fl["bulk_modulus"] * excess,
+                                           rel=1e-3)
+        assert w @ frames[0]["gauss/pore_pressure"][()] > 1.05e5 * w.sum()
+    assert out["steps"] == 3
+
+
 def test_3d_dem_rves_answer_undrained_on_quadratic_hexahedra(tmp_path):
     """hex20 displacements and hex1 pressures over 40-sphere RVEs (kn scaled for
     spheres as in the triaxial RVE test): no drainage, the element shortened by

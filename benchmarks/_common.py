@@ -18,6 +18,7 @@ import shutil
 import statistics
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[1]
@@ -74,6 +75,23 @@ def run_worker(script, args, threads, timeout=3600, tree=None):
         if line.startswith("RESULT "):
             out = json.loads(line[len("RESULT "):])
             out["ok"] = True
+            return out
+    tail = (p.stderr or p.stdout or "").strip().splitlines()[-8:]
+    return {"ok": False, "error": f"rc={p.returncode}: " + " | ".join(tail)}
+
+
+def run_result(cmd, env, cwd, timeout=3600):
+    """Run ``cmd``; the dict of its ``RESULT {json}`` line, or ``ok: False`` with why."""
+    t0 = time.perf_counter()
+    try:
+        p = subprocess.run(cmd, env=env, cwd=cwd, stdin=subprocess.DEVNULL,
+                           capture_output=True, text=True, timeout=timeout, check=False)
+    except subprocess.TimeoutExpired:
+        return {"ok": False, "error": f"timed out after {timeout} s"}
+    for line in p.stdout.splitlines():
+        if line.startswith("RESULT "):
+            out = json.loads(line[len("RESULT "):])
+            out.update(ok=True, process_time=time.perf_counter() - t0)
             return out
     tail = (p.stderr or p.stdout or "").strip().splitlines()[-8:]
     return {"ok": False, "error": f"rc={p.returncode}: " + " | ".join(tail)}

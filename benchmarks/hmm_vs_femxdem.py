@@ -300,24 +300,7 @@ def ours(cells, steps, procs, relax=True, check_residual=False):
     if procs > 1:
         cmd = [str(VENV_BIN / "mpiexec"), "-n", str(procs), sys.executable, "-m",
                "mpi4py"] + cmd[1:]
-    return _result(cmd, C.worker_env(1), C.REPO)
-
-
-def _result(cmd, env, cwd, timeout=3600):
-    """Run ``cmd``; the dict of its ``RESULT {json}`` line, or ``ok: False`` with why."""
-    t0 = time.perf_counter()
-    try:
-        p = subprocess.run(cmd, env=env, cwd=cwd, stdin=subprocess.DEVNULL,
-                           capture_output=True, text=True, timeout=timeout, check=False)
-    except subprocess.TimeoutExpired:
-        return {"ok": False, "error": f"timed out after {timeout} s"}
-    for line in p.stdout.splitlines():
-        if line.startswith("RESULT "):
-            out = json.loads(line[len("RESULT "):])
-            out.update(ok=True, process_time=time.perf_counter() - t0)
-            return out
-    tail = (p.stderr or p.stdout or "").strip().splitlines()[-8:]
-    return {"ok": False, "error": f"rc={p.returncode}: " + " | ".join(tail)}
+    return C.run_result(cmd, C.worker_env(1), C.REPO)
 
 
 # --------------------------------------------------------------------------- the peer
@@ -539,7 +522,7 @@ def peer(paths, cells, steps, procs):
     path = PEER_DIR / f"config_{_name(cells)}_{procs}.json"
     path.write_text(json.dumps(cfg))
     env = peer_env(paths, {"HVF_CONFIG": str(path)})
-    return _result([paths["python"], "femxdem_driver.py"], env, PEER_DIR)
+    return C.run_result([paths["python"], "femxdem_driver.py"], env, PEER_DIR)
 
 
 # --------------------------------------------------------------------------- comparison

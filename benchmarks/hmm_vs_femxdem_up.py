@@ -147,7 +147,7 @@ def ours(steps, procs, relax, n0):
     if procs > 1:
         cmd = [str(HV.VENV_BIN / "mpiexec"), "-n", str(procs), sys.executable, "-m",
                "mpi4py"] + cmd[1:]
-    return HV._result(cmd, C.worker_env(1), C.REPO)
+    return C.run_result(cmd, C.worker_env(1), C.REPO)
 
 
 # --------------------------------------------------------------------------- the peer
@@ -258,7 +258,7 @@ def peer(paths, steps, procs):
     path = HV.PEER_DIR / f"config_up_{procs}.json"
     path.write_text(json.dumps(cfg))
     env = HV.peer_env(paths, {"HVF_CONFIG": str(path)})
-    r = HV._result([paths["python"], "femxdem_up_driver.py"], env, HV.PEER_DIR,
+    r = C.run_result([paths["python"], "femxdem_up_driver.py"], env, HV.PEER_DIR,
                    timeout=C.env_int("PEER_TIMEOUT", 4 * 3600))
     if not r.get("ok") and partial.exists():
         r = dict(json.loads(partial.read_text()), ok=True, partial=r["error"])

@@ -34,7 +34,6 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import _common as C
-import hmm_vs_femxdem as HV
 
 OUT = C.RESULTS / "undrained_biaxial.json"
 FIGURE = C.REPO / "docs" / "figures" / "undrained_biaxial.png"
@@ -147,7 +146,7 @@ def main():
             cmd = [str(VENV_BIN / "mpiexec"), "-n", str(procs), sys.executable, "-m",
                    "mpi4py"] + cmd[1:]
         load = C.loadavg()
-        r = HV._result(cmd, C.worker_env(1), C.REPO, timeout=4 * 3600)
+        r = C.run_result(cmd, C.worker_env(1), C.REPO, timeout=4 * 3600)
         if not r.get("ok"):
             raise RuntimeError(f"{packing} failed: {r['error']}")
         r.pop("ok")

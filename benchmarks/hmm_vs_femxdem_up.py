@@ -24,11 +24,13 @@ modulus of 2.2 GPa and Kozeny-Carman's permeability ``kappa = d^2 / (180 mu) n^3
   ``[fluid] permeability_law = "kozeny_carman"`` from the packing's porosity).
 
 Ours is ``hmm.run.run_problem`` on a validated saturated problem (monolithic Newton,
-small kinematics: a fluid runs under small kinematics for now); the peer is a driver
-script written here (:data:`DRIVER`, our own text) that builds the Escript domain and
-the conditions and calls ``MultiScale.solve`` step by step. Ours runs twice: as it
-is (RVE calls relaxed to an unbalanced-force ratio of 1e-3) and with FEMxDEM's RVE
-call (its loading steps, no relaxation), keys ending in ``_no_relaxation``.
+small kinematics, the saturated default); the peer is a driver script written here
+(:data:`DRIVER`, our own text) that builds the Escript domain and the conditions and
+calls ``MultiScale.solve`` step by step. Ours runs three times: as it is (RVE calls
+relaxed to an unbalanced-force ratio of 1e-3), with FEMxDEM's RVE call (its loading
+steps, no relaxation), keys ending in ``_no_relaxation``, and as it is under finite
+kinematics (updated Lagrangian, the mesh moving as FEMxDEM's does), keys ending in
+``_finite``; ``kinematics_deviation`` compares our two kinematics.
 
 Measured: wall time per time step (the solve, set-up excluded), per Gauss-point
 call, Gauss-point evaluations per step, and after every step the mean effective
@@ -50,9 +52,10 @@ difference of the mean effective axial stress relative to its largest magnitude,
 
 Where the two set-ups differ:
 
-* **Kinematics.** FEMxDEM moves its mesh (``setX``) after every step; ours runs
-  small kinematics with a fluid. At the 1 % of axial strain of this test the two
-  kinematics differ by about the strain squared in the stress.
+* **Kinematics.** FEMxDEM moves its mesh (``setX``) after every step and sends the
+  RVEs the displacement gradient on it; ours runs small kinematics by default, and
+  finite kinematics in ``ours_finite``. At the 2 % of axial strain of this test the
+  two kinematics differ by about the strain squared in the stress.
 * **Coupling.** FEMxDEM splits (fixed stress, at most 10 outer iterations of at most
   50 Newton iterations, ``rtol`` = 1e-2 on the displacement and 1e-3 on the
   pressure); ours solves both fields in one Newton (``rtol`` = 1e-2 on the
@@ -64,6 +67,9 @@ usage::
 
     python benchmarks/hmm_vs_femxdem_up.py   # writes benchmarks/results/hmm_vs_femxdem_up.json
                                              # and docs/figures/hmm_vs_femxdem_up.png
+
+``python benchmarks/hmm_vs_femxdem_up.py --add ours_finite`` runs one of our variants
+into the JSON alone, the others kept.
 
 environment: STEPS (20), PEER_STEPS (3: FEMxDEM's steps take minutes each, see
 docs/performance.md), PEER_TIMEOUT (seconds, 14400: past it the peer's finished
@@ -95,8 +101,9 @@ VISCOSITY = 8.9e-4  # [Pa s]
 GRAIN = 1e-3  # [m] Kozeny-Carman's grain size in FEMxDEM's example
 KC = GRAIN ** 2 / (180.0 * VISCOSITY)  # [m^2/(Pa s)] its kappa / (n^3 / (1 - n)^2)
 GLOBAL_ITER, SOLID_ITER = 10, 50  # FEMxDEM's iteration caps (its example's)
-#: our two runs: as it is, and with FEMxDEM's RVE call
-VARIANTS = (("ours", True), ("ours_no_relaxation", False))
+#: our runs: as it is, with FEMxDEM's RVE call, and as it is under finite kinematics
+VARIANTS = {"ours": (True, "small"), "ours_no_relaxation": (False, "small"),
+            "ours_finite": (True, "finite")}
 
 
 # --------------------------------------------------------------------------- our side
@@ -106,7 +113,7 @@ def porosity(prep):
     return e / (1.0 + e)
 
 
-def problem(steps, relax, n0, out_dir):
+def problem(steps, relax, n0, out_dir, kinematics="small"):
     """The validated undrained biaxial problem, the packing's porosity ``n0``."""
     from hmm.problem import validate_problem
 
@@ -127,7 +134,7 @@ def problem(steps, relax, n0, out_dir):
                   "initial_pressure": PORE0, "permeability_law": "kozeny_carman"},
         "micro": {"model": "dem", "packing": str(HV.PACKING), **HV.MICRO,
                   "relax": bool(relax)},
-        "solver": dict(HV.SOLVER, kinematics="small"),
+        "solver": dict(HV.SOLVER, kinematics=kinematics),
         "output": {"dir": str(out_dir)},
     }, source="hmm_vs_femxdem_up")
 
@@ -141,9 +148,10 @@ def prepare():
     return out
 
 
-def ours(steps, procs, relax, n0):
+def ours(steps, procs, variant, n0):
+    relax, kinematics = VARIANTS[variant]
     cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", "ours", str(steps),
-           "relax" if relax else "fixed", repr(n0)]
+           "relax" if relax else "fixed", repr(n0), kinematics]
     if procs > 1:
         cmd = [str(HV.VENV_BIN / "mpiexec"), "-n", str(procs), sys.executable, "-m",
                "mpi4py"] + cmd[1:]
@@ -304,6 +312,7 @@ def visualize(data):
     FigureCanvasAgg(fig)
     ax_p, ax_s = fig.subplots(1, 2)
     lines = (("ours", "ko-", "hmm"), ("ours_no_relaxation", "b^-.", "hmm, no relaxation"),
+             ("ours_finite", "gx:", "hmm, finite kinematics"),
              ("femxdem", "rs--", "FEMxDEM msFEMup"))
     for key, style, name in lines:
         c = data["curves"].get(key)
@@ -362,12 +371,15 @@ def compare(data):
         n = len(them["step_wall"])  # the peer's steps: the speedups over the same steps
         good = converged_steps(them)
         data["peer_converged_steps"] = good
-        for key, suffix in (("ours_no_relaxation", ""), ("ours", "_default")):
+        for key, suffix in (("ours_no_relaxation", ""), ("ours", "_default"),
+                            ("ours_finite", "_finite")):
+            if key not in runs:
+                continue
             us = runs[key]
             mine = sum(us["step_wall"][:n]) / n
-            data["speedup" if key == "ours" else "speedup_no_relaxation"] = (
-                them["wall_per_load_step"] / mine)
-            data["speedup_rve_call" + ("" if key == "ours" else "_no_relaxation")] = (
+            tag = {"ours": "", "ours_no_relaxation": "_no_relaxation"}.get(key, suffix)
+            data["speedup" + tag] = them["wall_per_load_step"] / mine
+            data["speedup_rve_call" + tag] = (
                 them["wall_per_rve_call"] / us["wall_per_rve_call"])
             for k, v in deviation(us, them).items():
                 data[k if k == "compared_steps" else k + suffix] = v
@@ -378,14 +390,38 @@ def compare(data):
                         data[k + suffix + "_converged_steps"] = v
     data["max_rel_pore_pressure_deviation_relaxation"] = deviation(
         runs["ours"], runs["ours_no_relaxation"])["max_rel_pore_pressure_deviation"]
+    if "ours_finite" in runs:  # the two kinematics over our steps
+        data["kinematics_deviation"] = deviation(runs["ours"], runs["ours_finite"])
     data["curves"] = {key: curves(r) for key, r in runs.items()}
 
 
+def run_ours(data, key, steps, procs, n0):
+    """Our run ``key`` of :data:`VARIANTS` into ``data["runs"]``."""
+    load = C.loadavg()
+    r = ours(steps, procs, key, n0)
+    if not r.get("ok"):
+        raise RuntimeError(f"{key} failed: {r['error']}")
+    data["runs"][key] = dict(HV.per_run(r), loadavg=load, cuts=r["cuts"], date=C.now(),
+                             **{k: r[k] for k in SERIES})
+    print(f"{key}: {data['runs'][key]['wall_per_load_step']:.2f} s per step, "
+          f"evaluations {r['evaluations_per_step']}, p - p0 "
+          f"{[round((p - PORE0) / 1e3, 1) for p in r['mean_pore_pressure']]} kPa",
+          flush=True)
+
+
 def main():
-    """The runs and their comparison; ``--rescore`` recomputes the figures of the
-    JSON's runs (after a change to :func:`compare`) without running anything."""
-    if "--rescore" in sys.argv:
+    """The runs and their comparison. ``--rescore`` recomputes the figures of the
+    JSON's runs (after a change to :func:`compare`) without running anything;
+    ``--add NAME`` runs our variant ``NAME`` (of :data:`VARIANTS`) alone into the
+    JSON and rescores, the other runs kept (each run carries its date)."""
+    if "--rescore" in sys.argv or "--add" in sys.argv:
         data = json.loads(OUT.read_text())
+        if "--add" in sys.argv:
+            key = sys.argv[sys.argv.index("--add") + 1]
+            if key not in VARIANTS:
+                raise SystemExit(f"--add: one of {', '.join(VARIANTS)}, not {key!r}")
+            s = data["settings"]
+            run_ours(data, key, s["steps"], s["processes"], s["porosity"])
         compare(data)
         C.write_json(OUT, data)
         visualize(data).savefig(FIGURE, dpi=120)
@@ -409,7 +445,8 @@ def main():
                          "kozeny_carman": KC, "porosity": n0, "rtol": HV.RTOL,
                          "femxdem_iterations": [GLOBAL_ITER, SOLID_ITER],
                          "micro": HV.MICRO, "solver": HV.SOLVER,
-                         "kinematics": "small (ours), updated Lagrangian (FEMxDEM)"},
+                         "kinematics": "small (ours, ours_no_relaxation), updated "
+                                       "Lagrangian (ours_finite, FEMxDEM)"},
             "packing": {"ours": {k: prep[k] for k in ("stress", "void_ratio",
                                                       "n_contacts", "particles")}},
             "runs": {}, "curves": {}}
@@ -422,17 +459,8 @@ def main():
             data["versions"]["yade"] = data["packing"]["yade"].get("yade_version")
         except (RuntimeError, OSError) as err:
             paths, reason = None, f"YADE could not prepare the RVE scene: {err}"
-    for key, relax in VARIANTS:
-        load = C.loadavg()
-        r = ours(steps, procs, relax, n0)
-        if not r.get("ok"):
-            raise RuntimeError(f"{key} failed: {r['error']}")
-        data["runs"][key] = dict(HV.per_run(r), loadavg=load, cuts=r["cuts"],
-                                 **{k: r[k] for k in SERIES})
-        print(f"{key}: {data['runs'][key]['wall_per_load_step']:.2f} s per step, "
-              f"evaluations {r['evaluations_per_step']}, p - p0 "
-              f"{[round((p - PORE0) / 1e3, 1) for p in r['mean_pore_pressure']]} kPa",
-              flush=True)
+    for key in VARIANTS:
+        run_ours(data, key, steps, procs, n0)
     if paths is None:
         data.update(status="peer_skipped", reason=reason)
         print(f"FEMxDEM skipped: {reason}", flush=True)
@@ -469,9 +497,10 @@ def worker(args):
     if args[0] == "prepare":
         C.emit_result(prepare())
     elif args[0] == "ours":
-        steps, relax, n0 = int(args[1]), args[2] == "relax", float(args[3])
-        out_dir = HV.SCRATCH / f"ours_up{'' if relax else '_fixed'}"
-        r = HV.run_timed(problem(steps, relax, n0, out_dir), out_dir)
+        steps, relax, n0, kinematics = int(args[1]), args[2] == "relax", float(args[3]), \
+            args[4]
+        out_dir = HV.SCRATCH / f"ours_up{'' if relax else '_fixed'}_{kinematics}"
+        r = HV.run_timed(problem(steps, relax, n0, out_dir, kinematics), out_dir)
         if r is not None:
             C.emit_result(r)
 

@@ -80,6 +80,17 @@ def run_worker(script, args, threads, timeout=3600, tree=None):
     return {"ok": False, "error": f"rc={p.returncode}: " + " | ".join(tail)}
 
 
+def worker_command(script, args, procs=1):
+    """The command of ``python script --worker *args``; on ``procs`` > 1 ranks under
+    the venv's ``mpiexec``, through ``python -m mpi4py`` (a rank's exception ends the
+    job instead of hanging it). For :func:`run_result`."""
+    cmd = [sys.executable, str(Path(script).resolve()), "--worker", *[str(a) for a in args]]
+    if procs > 1:
+        cmd = [str(Path(sys.executable).parent / "mpiexec"), "-n", str(procs),
+               sys.executable, "-m", "mpi4py"] + cmd[1:]
+    return cmd
+
+
 def run_result(cmd, env, cwd, timeout=3600):
     """Run ``cmd``; the dict of its ``RESULT {json}`` line, or ``ok: False`` with why."""
     t0 = time.perf_counter()

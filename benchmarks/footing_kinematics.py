@@ -43,7 +43,6 @@ OUT = C.RESULTS / "footing_kinematics.json"
 FIGURE = C.REPO / "docs" / "figures" / "footing_kinematics.png"
 SCRATCH = C.WORK / "footing_kinematics"
 EXAMPLE = C.REPO / "examples" / "strip_footing.toml"
-VENV_BIN = Path(sys.executable).parent
 WIDTH = 0.04  # [m] B, the whole footing (the model holds half of it)
 
 
@@ -98,11 +97,8 @@ def run_one(kinematics, steps, s_over_b, mesh, count):
 
 
 def launch(kinematics, steps, procs, s_over_b, mesh, count):
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", kinematics,
-           str(steps), str(s_over_b), f"{mesh[0]}x{mesh[1]}", str(count)]
-    if procs > 1:
-        cmd = [str(VENV_BIN / "mpiexec"), "-n", str(procs), sys.executable, "-m",
-               "mpi4py"] + cmd[1:]
+    cmd = C.worker_command(__file__, [kinematics, steps, s_over_b,
+                                      f"{mesh[0]}x{mesh[1]}", count], procs)
     p = subprocess.run(cmd, env=C.worker_env(1), cwd=C.REPO, stdin=subprocess.DEVNULL,
                        capture_output=True, text=True, check=False, timeout=6 * 3600)
     for line in p.stdout.splitlines():

@@ -145,7 +145,6 @@ SCRATCH = C.WORK / "hmm_vs_femxdem"
 PACKING = SCRATCH / f"packing_{DIM}d.h5"  # ours, consolidated (RVE.save)
 EXPORT = SCRATCH / f"export_{DIM}d.json"  # the exported packing, for YADE
 PEER_DIR = SCRATCH / f"femxdem_{DIM}d"  # FEMxDEM's working directory (0.yade.gz, ...)
-VENV_BIN = Path(sys.executable).parent
 
 P0 = RV.P0  # [Pa] consolidation and confining pressure
 #: [m] the samples of FEMxDEM's biaxial example (2D) and of its triaxial example (3D,
@@ -294,12 +293,9 @@ def run_timed(prob, out_dir):
 
 def ours(cells, steps, procs, relax=True, check_residual=False):
     """Run :func:`run_ours` in a fresh process (under mpiexec for ``procs`` > 1)."""
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", "ours",
-           _name(cells), str(steps), "relax" if relax else "fixed",
-           "residual" if check_residual else "correction"]
-    if procs > 1:
-        cmd = [str(VENV_BIN / "mpiexec"), "-n", str(procs), sys.executable, "-m",
-               "mpi4py"] + cmd[1:]
+    cmd = C.worker_command(__file__, ["ours", _name(cells), steps,
+                                      "relax" if relax else "fixed",
+                                      "residual" if check_residual else "correction"], procs)
     return C.run_result(cmd, C.worker_env(1), C.REPO)
 
 

@@ -150,11 +150,8 @@ def prepare():
 
 def ours(steps, procs, variant, n0):
     relax, kinematics = VARIANTS[variant]
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", "ours", str(steps),
-           "relax" if relax else "fixed", repr(n0), kinematics]
-    if procs > 1:
-        cmd = [str(HV.VENV_BIN / "mpiexec"), "-n", str(procs), sys.executable, "-m",
-               "mpi4py"] + cmd[1:]
+    cmd = C.worker_command(__file__, ["ours", steps, "relax" if relax else "fixed",
+                                      repr(n0), kinematics], procs)
     return C.run_result(cmd, C.worker_env(1), C.REPO)
 
 

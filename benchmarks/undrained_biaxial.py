@@ -55,7 +55,6 @@ FIGURE = C.REPO / "docs" / "figures" / "undrained_biaxial.png"
 DEFAULT_SIZE = ([2, 4], 100)
 SCRATCH = C.WORK / "undrained_biaxial"
 EXAMPLE = C.REPO / "examples" / "biaxial_undrained.toml"
-VENV_BIN = Path(sys.executable).parent
 #: packing -> [micro] consolidation_friction (LOOSE_FRICTION: the loose one's)
 PACKINGS = {"dense": 0.0, "loose": float(os.environ.get("LOOSE_FRICTION", "0.3"))}
 #: the drained limit: a permeability [m^2] whose consolidation time is far below a step
@@ -265,11 +264,8 @@ def deviation(path, ref, key, scale, upto=None):
 
 def launch(args, procs, cells, count, steps):
     """Run a worker of ``args`` (on ``procs`` ranks); its result."""
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--worker", *args,
-           "x".join(map(str, cells)), str(count), str(steps)]
-    if procs > 1:
-        cmd = [str(VENV_BIN / "mpiexec"), "-n", str(procs), sys.executable, "-m",
-               "mpi4py"] + cmd[1:]
+    cmd = C.worker_command(__file__, [*args, "x".join(map(str, cells)), count, steps],
+                           procs)
     load = C.loadavg()
     r = C.run_result(cmd, C.worker_env(1), C.REPO, timeout=4 * 3600)
     if not r.get("ok"):

@@ -209,7 +209,7 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
             n_tot = n_inner[0]
             n_int = n_inner[1]
             work = 0.0
-            if MESH:  # 4b. sphere-mesh rows, sphere by sphere (their sums added in 5)
+            if MESH:  # 4b. sphere-mesh rows, by blocks of spheres (their sums added in 5)
                 mesh_forces(PW, ROLL, pos, vel, ang_vel, radius, inv_mass, inv_inertia,
                             mat_id, meshes, params_pw, hdt, overlap_limit, status_out)
             if SERIAL:

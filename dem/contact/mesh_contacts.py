@@ -31,9 +31,10 @@ import math
 from typing import NamedTuple
 
 import numpy as np
+import numba
 
 from .._jit import kernel
-from ..meshwall_kernels import FACE, _face_closest, _owns
+from ..meshwall_kernels import FACE, MeshArrays, _face_closest, _owns
 from ..status import OVERLAP
 from .laws import apply_law, normal_stiffness, row_size
 from .rolling import pair_inertia, rolling_moment
@@ -264,15 +265,51 @@ def mesh_sphere(i, code, roll, pos, vel, ang_vel, radius, inv_mass, inv_inertia,
             msum[i, 3 + a] += st.mtorque[r, a]
 
 
+#: spheres per task of :func:`mesh_forces`'s parallel loop
+MESH_BLOCK = 64
+
+
 @kernel
+def _mesh_spheres(lo, hi, code, roll, pos, vel, ang_vel, radius, inv_mass, inv_inertia,
+                  mat_id, m0, m1, m2, m3, m4, m5, m6, m7, w0, w1, w2, w3, w4, w5, w6, w7, w8,
+                  s0, s1, s2, s3, s4, s5, s6, mstart, mflag, msum, params, dt,
+                  overlap_limit, status_out):
+    """:func:`mesh_sphere` for spheres lo to hi - 1, the bundles given as their arrays
+    (a real call, from the parallel loop of :func:`mesh_forces`)."""
+    ml = (MeshArrays(m0, m1, m2, m3, m4, m5, m6, m7),
+          MeshMotion(w0, w1, w2, w3, w4, w5, w6, w7, w8),
+          MeshContactState(s0, s1, s2, s3, s4, s5, s6), mstart, mflag, msum)
+    for i in range(lo, hi):
+        if mstart[i + 1] == mstart[i]:  # no rows: no mesh force
+            for a in range(6):
+                msum[i, a] = 0.0
+            continue
+        mesh_sphere(i, code, roll, pos, vel, ang_vel, radius, inv_mass, inv_inertia, mat_id,
+                    ml, params, dt, overlap_limit, status_out)
+
+
+@kernel(parallel=True)
 def mesh_forces(code, roll, pos, vel, ang_vel, radius, inv_mass, inv_inertia, mat_id, ml,
                 params, dt, overlap_limit, status_out):
-    """:func:`mesh_sphere` for every sphere, in order (a real call: the sphere loop is
-    a parallel kernel, whose passes mishandle this code inlined). ``code`` and
-    ``roll`` are the loop's law code and rolling flag."""
-    for i in range(pos.shape[0]):
-        mesh_sphere(i, code, roll, pos, vel, ang_vel, radius, inv_mass, inv_inertia,
-                    mat_id, ml, params, dt, overlap_limit, status_out)
+    """:func:`mesh_sphere` for every sphere, in parallel over blocks of
+    :data:`MESH_BLOCK` spheres: a sphere writes only its own rows and ``msum`` row, so
+    the result does not depend on the thread count (a real call: the sphere loop's
+    passes mishandle this code inlined). ``code`` and ``roll`` are the loop's law code
+    and rolling flag.
+
+    Numba passes arrays and numbers into a parallel loop, not named tuples: the
+    bundles go in as their arrays, and :func:`_mesh_spheres` puts them together.
+    """
+    mesh, walls, st, mstart, mflag, msum = ml
+    m0, m1, m2, m3, m4, m5, m6, m7 = mesh
+    w0, w1, w2, w3, w4, w5, w6, w7, w8 = walls
+    s0, s1, s2, s3, s4, s5, s6 = st
+    n = pos.shape[0]
+    for blk in numba.prange((n + MESH_BLOCK - 1) // MESH_BLOCK):
+        _mesh_spheres(blk * MESH_BLOCK, min(n, (blk + 1) * MESH_BLOCK), code, roll, pos, vel,
+                      ang_vel, radius, inv_mass, inv_inertia, mat_id, m0, m1, m2, m3, m4, m5,
+                      m6, m7, w0, w1, w2, w3, w4, w5, w6, w7, w8, s0, s1, s2, s3, s4, s5, s6,
+                      mstart, mflag, msum, params, dt, overlap_limit, status_out)
 
 
 @kernel

@@ -13,9 +13,10 @@ from a lattice, settle and are carried round. Claims checked by tests/test_examp
   opposes the rotation, and the drum's work exceeds the bed's gain of potential and
   kinetic energy (the rest is dissipated in the contacts).
 
-At the small size 138 spheres turn for 0.6 s; ``EXAMPLES_SIZE=full`` runs about 550
-for 2 s; run as a script it writes
-``drum.h5`` with its XDMF files (``drum_meshes.xdmf``: the turning drum) for ParaView.
+At the small size 138 spheres turn for 0.6 s; ``EXAMPLES_SIZE=full`` runs 552 for
+2 s; run as a script it writes ``drum.h5`` with its XDMF files (``drum_meshes.xdmf``:
+the turning drum) for ParaView, and its figure (into ``docs/figures/`` with
+``--docs``).
 """
 
 import os
@@ -25,6 +26,7 @@ import numpy as np
 
 import dem
 import dem.io
+from dem.io.hdf5 import figure_path
 
 SIZE = os.environ.get("EXAMPLES_SIZE", "small")
 DRUM_R, R, RHO = 0.06, 0.005, 2500.0  # [m], [m], [kg/m^3]
@@ -115,6 +117,7 @@ def visualize():
     ax.set_xlabel("x [m]")
     ax.set_ylabel("z [m]")
     ax.set_title(f"drum at {OMEGA:g} rad/s: bed leans {lean:.0f} deg")
+    fig.tight_layout()
     return fig
 
 
@@ -126,5 +129,10 @@ if __name__ == "__main__":
         sim.run(n_steps // 5)
     print(f"{n_spheres} spheres, {n_steps} steps of {sim.dt:.3g} s: bed leans {lean:.1f} "
           f"deg, drum torque {torque_mean:.3g} N m, work {drum_work:.3g} J "
-          f"(energy gain {energy_gain:.3g} J); output {out / 'drum.h5'}")
-    visualize().savefig(out / "rotating_drum.png", dpi=120)
+          f"(energy gain {energy_gain:.3g} J); farthest centre {1e3 * reach:.2f} mm from "
+          f"the axis (the drum's radius less a sphere's: {1e3 * (DRUM_R - R):.2f} mm), "
+          f"{1e3 * span_y:.2f} mm from the middle plane (end caps less a sphere's: "
+          f"{1e3 * (0.5 * DEPTH - R):.2f} mm); output {out / 'drum.h5'}")
+    fig_path = figure_path("rotating_drum.png", out,
+                           Path(__file__).resolve().parents[1] / "docs" / "figures")
+    visualize().savefig(fig_path, dpi=120)

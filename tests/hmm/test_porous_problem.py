@@ -3,6 +3,7 @@
 and a DEM micro model answering undrained."""
 
 import copy
+import runpy
 from pathlib import Path
 
 import h5py
@@ -197,75 +198,41 @@ def test_dem_rves_answer_undrained_at_constant_volume(tmp_path):
 
 
 # ------------------------------------------------------------ limits: drained, undrained
+ELEMENT = runpy.run_path(str(ROOT / "benchmarks" / "undrained_element.py"), run_name="bench")
+
+
 @pytest.fixture(scope="module")
 def packing(tmp_path_factory):
-    """A 100-disk packing at 100 kPa, and its undrained test in ``hmm rve``. (An
-    element of 40-disk RVEs does not stay uniform: their noise is larger than the
-    stiffness of the element's non-uniform modes, and at a nominal 0.4 % its Gauss
-    points' axial strains part from 0.2 % to 0.6 %.)"""
-    from hmm.experiment import run_experiment, validate_config
-
-    out = tmp_path_factory.mktemp("packing")
-    cfg = validate_config({
-        "packing": {"count": 100, "radius": [0.8e-3, 1.2e-3], "p0": 1e5, "seed": 4},
-        "contact": {"law": "linear", "kn": 1e8, "kt": 5e7, "mu": 0.5},
-        "test": {"kind": "undrained", "axial_strain": 0.004, "increment": 0.001}},
-        "undrained.toml")
-    cfg["output"]["dir"] = str(out)
-    return out / "packing.h5", run_experiment(cfg, progress=False)
-
-
-def _element(tmp_path, packing_file, name, **saturated):
-    """One quad8 element (3 x 3 Gauss points) of RVEs from ``packing_file``,
-    shortened by 0.4 % in 4 steps at 100 kPa lateral pressure; its mean deviator q
-    and pore pressure per step."""
-    data = {
-        "mesh": {"dim": 2, "element": "quad8", "size": [0.02, 0.02], "cells": [1, 1],
-                 "integration": "full"},
-        "dirichlet": [{"boundary": "bottom", "component": "y"},
-                      {"boundary": "left", "component": "x"},
-                      {"boundary": "top", "component": "y", "value": -8e-5}],
-        "pressure": [{"boundary": "right", "value": 1e5}],
-        "load": {"steps": 4},
-        "micro": {"model": "dem", "packing": str(packing_file)},
-        "solver": {"tol_residual": 1e-2, "tol_displacement": 5e-3, "kinematics": "small"},
-        **saturated}
-    run_problem(validate_problem(data, source=f"{name}.toml"), tmp_path / name,
-                progress=False)
-    q, p = [], []
-    with h5py.File(tmp_path / name / "fields.h5", "r") as f:
-        for k in sorted(f["steps"]):
-            s = -f["steps"][k]["gauss/stress"][()]
-            q.append(np.mean(np.sqrt(0.25 * (s[:, 0, 0] - s[:, 1, 1]) ** 2
-                                     + s[:, 0, 1] ** 2)))
-            if "gauss/pore_pressure" in f["steps"][k]:
-                p.append(f["steps"][k]["gauss/pore_pressure"][()].mean())
-    return np.array(q), np.array(p)
+    """A 100-disk packing at 100 kPa, and its undrained test in ``hmm rve``
+    (benchmarks/undrained_element.py). (An element of 40-disk RVEs does not stay
+    uniform: their noise is larger than the stiffness of the element's non-uniform
+    modes, and at a nominal 0.4 % its Gauss points' axial strains part from 0.2 % to
+    0.6 %.)"""
+    return ELEMENT["rve_test"](tmp_path_factory.mktemp("packing"))
 
 
 def test_an_impermeable_element_carries_the_pore_pressure_of_the_rve_test(packing,
                                                                          tmp_path):
     """Low permeability, no drainage: an element of RVEs follows the constant-volume
     `hmm rve` test on the same packing, its deviator and the excess pore pressure
-    its water carries within 5 % of the test's peak deviator, at every step."""
+    its water carries within 5 % of the test's peak deviator, at every step, and it
+    stays uniform."""
     path, lab = packing
-    q, p = _element(tmp_path, path, "undrained", fluid={"permeability": 1e-20},
-                    time={"end": 1.0, "ramp": 1.0})
+    q, p, eyy = ELEMENT["element"](tmp_path, path, "undrained", **ELEMENT["UNDRAINED"])
     peak = lab.curves["q"].max()
     assert np.abs(q - lab.curves["q"]).max() < 0.05 * peak
     assert np.abs(p - lab.curves["excess_pore_pressure"]).max() < 0.05 * peak
     assert p[1:].min() > 0.5 * lab.curves["excess_pore_pressure"][1:].max()
+    nominal = 0.001 * np.arange(eyy.shape[0])  # step 0 first
+    assert np.abs(eyy - nominal[:, None]).max() < 0.05 * nominal[-1]
 
 
 def test_a_permeable_element_loaded_slowly_is_drained(packing, tmp_path):
     """High permeability, drained sides, a slow load: the dry run's deviator within
     5 % of its peak, and no pore pressure to speak of."""
     path, _ = packing
-    dry, _ = _element(tmp_path, path, "dry")
-    q, p = _element(tmp_path, path, "drained", fluid={"permeability": 1e-8},
-                    time={"end": 1e4, "ramp": 1e4},
-                    drainage=[{"boundary": "top", "pressure": 0.0},
-                              {"boundary": "right", "pressure": 0.0}])
+    dry, _, _ = ELEMENT["element"](tmp_path, path, "dry")
+    q, p, _ = ELEMENT["element"](tmp_path, path, "drained", **ELEMENT["DRAINED"])
     assert np.abs(q - dry).max() < 0.05 * dry.max()
     assert np.abs(p).max() < 1e-3 * dry.max()
 

@@ -70,6 +70,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/contact_speed_accuracy.py
 	$(BIN)/python benchmarks/shape_throughput.py
 	$(BIN)/python benchmarks/porous_verification.py
+	$(BIN)/python benchmarks/undrained_element.py
 	$(BIN)/python benchmarks/porous_coupling.py
 	$(BIN)/python benchmarks/shape_limits.py
 	$(BIN)/python benchmarks/rve_call.py
@@ -83,14 +84,23 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/hmm_vs_femxdem_up.py
 	$(BIN)/python benchmarks/undrained_biaxial.py
 	$(BIN)/python benchmarks/hmm_tangent_adaptive.py
+	$(BIN)/python benchmarks/footing_kinematics.py
+	$(BIN)/python benchmarks/demo_kinematics.py
 	$(BIN)/python benchmarks/pd_lammps.py
 	$(BIN)/python benchmarks/pd_kirsch.py
 	$(BIN)/python benchmarks/pd_surface_effect.py
 	$(BIN)/python benchmarks/stability_map.py
 	$(BIN)/python benchmarks/angle_of_repose.py
+	$(BIN)/python benchmarks/oblique_impact.py
+	$(BIN)/python benchmarks/rolling_stop.py
+	BASE=7fd19e3 RUNS=5 $(BIN)/python benchmarks/mesh_throughput.py
+	$(BIN)/python benchmarks/hopper_beverloo.py
+	$(BIN)/python benchmarks/cold_start.py
 	$(BIN)/python benchmarks/compile_memory.py
 	NO_PARALLEL=1 $(BIN)/python benchmarks/loop_compile.py
+	$(BIN)/python benchmarks/output_driver.py
 	$(BIN)/python benchmarks/triaxial_3d.py
+	$(BIN)/python benchmarks/cost_model.py
 
 clean:
 	rm -rf $(VENV) .numba_cache .pytest_cache output

@@ -19,7 +19,7 @@ value p0; the bar: 2 %) and the peak of the Mandel-Cryer effect
 
 Writes benchmarks/results/porous_verification.json and
 docs/figures/porous_verification.png. No peers: the closed forms are the reference
-(hmm.poroelastic_solutions). Runs in about half a minute.
+(hmm.poroelastic_solutions). Runs in about 15 s.
 """
 
 import sys

@@ -3,7 +3,8 @@
 A sphere (R = 1 cm, 2500 kg/m^3, 1 m/s, no spin) hits the plane z = 0 at 5 to 85 deg
 from the normal, for restitution e from 0.3 to 0.98 and friction mu from 0.1 to 0.5,
 with Hertz-Mindlin and with a linear law carrying a tangential dashpot. In gross
-sliding (tan(angle) > 3.5 mu (1 + e): the slip outlasts the contact) the tangential
+sliding (tan(angle) > 3.5 mu (1 + e), with a 5 % margin: the slip outlasts the
+contact) the tangential
 impulse must be mu times the normal one and the rebound spin ``2.5 mu (1 + e) v_n / R``.
 
 Two normal impulses are reported: the whole change of normal momentum, and its
@@ -16,7 +17,7 @@ benchmarks/results/oblique_impact.json (keys ``max_deviation_compressive``,
 ``max_deviation_total``, ``max_spin_deviation``, ``max_restitution_deviation`` over the
 gross-sliding cases without the clip, the same under ``limit_damping``, and every
 case) and docs/figures/oblique_impact.png.
-Run: python benchmarks/oblique_impact.py
+Run: python benchmarks/oblique_impact.py (``--figure`` redraws the figure from the JSON)
 """
 
 import itertools

@@ -61,6 +61,21 @@ def bin_triangles(side, height, orifice):
     return np.array(v), np.array(faces)
 
 
+def filled_bin(wall, side, layers, rng):
+    """A simulation of spheres on a lattice of ``layers`` layers (spacing 1.1 d, jittered
+    sideways by ``rng``) in a bin ``side`` wide, the triangle-mesh ``wall``, under
+    gravity: ``(sim, xs, zs)``, the lattice's columns and layers."""
+    step = 1.1 * D_SPHERE
+    xs = np.arange(-0.5 * side + step, 0.5 * side - 0.5 * step, step)
+    zs = 0.6 * D_SPHERE + step * np.arange(layers)
+    pos = np.array([[x, y, z] for z in zs for x in xs for y in xs])
+    pos[:, :2] += 0.02 * D_SPHERE * rng.standard_normal((pos.shape[0], 2))
+    bodies = dem.Bodies.spheres(pos, radius=0.5 * D_SPHERE, density=RHO)
+    law = dem.LinearSpring(kn=1e4, kt=5e3, mu=0.5, restitution=0.5)
+    sim = dem.Simulation(bodies, law, gravity=[0.0, 0.0, -G], walls=[wall])
+    return sim, xs, zs
+
+
 def discharge(orifice_d, workdir):
     """Mass flow rate [kg/s] through an orifice ``orifice_d`` sphere diameters wide, and
     the number of spheres."""
@@ -71,15 +86,9 @@ def discharge(orifice_d, workdir):
     v, f = bin_triangles(side, height, orifice_d * D_SPHERE)
     stl = Path(workdir) / f"bin_{orifice_d:g}.stl"
     dem.MeshWall(v, f).write(stl)
-    hopper = dem.MeshWall.from_file(stl)
-    xs = np.arange(-0.5 * side + step, 0.5 * side - 0.5 * step, step)
-    zs = 0.6 * D_SPHERE + step * np.arange(layers)
-    pos = np.array([[x, y, z] for z in zs for x in xs for y in xs])
     rng = np.random.default_rng(1)
-    pos[:, :2] += 0.02 * D_SPHERE * rng.standard_normal((pos.shape[0], 2))
-    bodies = dem.Bodies.spheres(pos, radius=0.5 * D_SPHERE, density=RHO)
-    law = dem.LinearSpring(kn=1e4, kt=5e3, mu=0.5, restitution=0.5)
-    sim = dem.Simulation(bodies, law, gravity=[0.0, 0.0, -G], walls=[hopper])
+    sim, xs, zs = filled_bin(dem.MeshWall.from_file(stl), side, layers, rng)
+    bodies = sim.bodies
     slots = np.array([[x, y, zs[-1] + k * step] for k in (2, 3) for x in xs for y in xs])
     every = max(1, int(0.005 / sim.dt))
     times, out, used = [], [], 0
@@ -130,6 +139,7 @@ def main():
 def plot(orifices, rates, beta, path):
     """W against D - k d on log axes, with the fitted and Beverloo's slopes."""
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FormatStrFormatter, NullFormatter
 
     x = np.asarray(orifices) - K_BEVERLOO
     fig, ax = plt.subplots(figsize=(4.5, 3.5))
@@ -139,8 +149,6 @@ def plot(orifices, rates, beta, path):
     ax.loglog(xs, c * xs ** beta, "-", label=f"fit, exponent {beta:.2f}")
     c25 = np.exp(np.mean(np.log(rates) - 2.5 * np.log(x)))
     ax.loglog(xs, c25 * xs ** 2.5, "--", label="Beverloo, 5/2")
-    from matplotlib.ticker import FormatStrFormatter, NullFormatter
-
     ax.set_xticks(x)
     ax.xaxis.set_major_formatter(FormatStrFormatter("%g"))
     ax.xaxis.set_minor_formatter(NullFormatter())

@@ -60,17 +60,9 @@ def scene():
     import dem
     import hopper_beverloo as hb
 
-    d = hb.D_SPHERE
-    side = 16.0 * d
-    v, f = closed_bin(side, 16 * 1.1 * d)
-    step = 1.1 * d
-    xs = np.arange(-0.5 * side + step, 0.5 * side - 0.5 * step, step)
-    zs = 0.6 * d + step * np.arange(14)
-    pos = np.array([[x, y, z] for z in zs for x in xs for y in xs])
-    pos[:, :2] += 0.02 * d * np.random.default_rng(1).standard_normal((pos.shape[0], 2))
-    bodies = dem.Bodies.spheres(pos, radius=0.5 * d, density=hb.RHO)
-    law = dem.LinearSpring(kn=1e4, kt=5e3, mu=0.5, restitution=0.5)
-    return dem.Simulation(bodies, law, gravity=[0.0, 0.0, -hb.G], walls=[dem.MeshWall(v, f)])
+    side = 16.0 * hb.D_SPHERE
+    v, f = closed_bin(side, 16 * 1.1 * hb.D_SPHERE)
+    return hb.filled_bin(dem.MeshWall(v, f), side, 14, np.random.default_rng(1))[0]
 
 
 def worker(args):

@@ -67,6 +67,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/dt_speed_accuracy.py
 	$(BIN)/python benchmarks/neighbor_backends.py
 	$(BIN)/python benchmarks/step_profile.py
+	BASE=a7808d7 STEPS=200 ROUNDS=5 $(BIN)/python benchmarks/step_profile.py
 	$(BIN)/python benchmarks/contact_speed_accuracy.py
 	$(BIN)/python benchmarks/shape_throughput.py
 	$(BIN)/python benchmarks/porous_verification.py
@@ -85,6 +86,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/undrained_biaxial.py
 	$(BIN)/python benchmarks/hmm_tangent_adaptive.py
 	$(BIN)/python benchmarks/footing_kinematics.py
+	$(BIN)/python benchmarks/retaining_wall_reference.py
+	CELLS=40x20 $(BIN)/python benchmarks/retaining_wall_reference.py
 	$(BIN)/python benchmarks/demo_kinematics.py
 	$(BIN)/python benchmarks/pd_lammps.py
 	$(BIN)/python benchmarks/pd_kirsch.py

@@ -4,8 +4,9 @@ The pieces a scikit-fem user composes (SI units throughout; ``docs/python_api.md
 builds and runs a problem with them):
 
 mesh and boundaries
-    :func:`structured_mesh` (or any skfem mesh with named boundaries, e.g.
-    ``MeshQuad.init_tensor(x, y).with_defaults()``), :func:`cut_boundary`,
+    :func:`structured_mesh`, :func:`tensor_mesh` (graded), or any skfem mesh with
+    named boundaries (e.g. ``MeshQuad.init_tensor(x, y).with_defaults()``),
+    :func:`cut_boundary`,
     :func:`read_mesh`, and :class:`Macro`: a vector basis on the mesh, its Gauss
     points and the forms of a Newton iteration, in ``"small"`` or ``"finite"``
     kinematics.
@@ -45,7 +46,8 @@ import importlib
 
 #: public name -> the submodule that defines it
 _WHERE = {
-    "structured_mesh": "macro", "Macro": "macro", "ELEMENTS": "macro",
+    "structured_mesh": "macro", "tensor_mesh": "macro", "Macro": "macro",
+    "ELEMENTS": "macro",
     "cut_boundary": "conditions", "Dirichlet": "conditions", "Platen": "conditions",
     "Periodic": "conditions", "supports": "conditions", "Pressure": "conditions",
     "Traction": "conditions", "BodyForce": "conditions", "external_forces": "conditions",

@@ -175,9 +175,22 @@ def structured_mesh(element, size, cells):
     """A rectangle (2D) or box (3D) ``[0, size]`` split into ``cells`` per axis, with
     the boundaries ``left``/``right`` (x), ``bottom``/``top`` (y) and
     ``front``/``back`` (z in 3D)."""
+    return tensor_mesh(element, [np.linspace(0.0, float(s), int(n) + 1)
+                                 for s, n in zip(size, cells, strict=True)])
+
+
+def tensor_mesh(element, edges):
+    """The rectangle (2D) or box (3D) whose elements have the edges ``edges`` [m] along
+    each axis (increasing coordinates: a graded mesh), with the boundaries of
+    :func:`structured_mesh`.
+
+    >>> m = tensor_mesh("quad1", [[0.0, 0.1, 0.4], [0.0, 0.03, 0.2]])
+    >>> sorted(float(y) for y in set(m.p[1]))
+    [0.0, 0.03, 0.2]
+    """
     mesh_cls = ELEMENTS[element][0]
-    axes = [np.linspace(0.0, float(s), int(n) + 1) for s, n in zip(size, cells, strict=True)]
-    return mesh_cls.init_tensor(*axes).with_defaults()
+    return mesh_cls.init_tensor(*[np.asarray(e, dtype=np.float64) for e in edges]) \
+        .with_defaults()
 
 
 class Macro:

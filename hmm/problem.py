@@ -10,6 +10,8 @@ Layout (SI units; ``d`` is ``[mesh] dim``)::
     size = [0.05, 0.1]             # [m] rectangle / box [0, size]
     cells = [2, 4]                 # elements per axis
     file = "mesh.msh"              # instead of size/cells: any mesh scikit-fem reads
+    x = [0.0, 0.03, 0.05]          # instead of size/cells: the element edges [m] along
+    y = [0.0, 0.02, 0.06, 0.1]     # every axis, a graded mesh
 
     [[boundary]]                   # a named part of a boundary (optional, any number)
     name = "footing"
@@ -139,6 +141,22 @@ def load_problem(path):
     return validate_problem(read_toml(path, "problem"), str(path), path.parent)
 
 
+def _check_edges(ctx, m, edges):
+    """A graded mesh: element edges along every axis, and neither size, cells nor a
+    file."""
+    axes = "xyz"[:m["dim"]]
+    if m["file"] is not None or m["size"] is not None or m["cells"] is not None:
+        ctx.fail(f"takes the element edges {', '.join(edges)}, or size and cells, or a "
+                 "mesh file: one of them", "[mesh]")
+    if edges != list(axes):
+        ctx.fail(f"needs the element edges along every axis ({', '.join(axes)}) in "
+                 f"{m['dim']}D, got {', '.join(edges)}", "[mesh]")
+    try:
+        MESH_ELEMENTS.check(math.prod(len(m[a]) - 1 for a in axes), "edges: elements")
+    except LimitError as exc:
+        ctx.fail(str(exc), "[mesh]")
+
+
 def validate_problem(data, source="<problem>", base_dir="."):
     """Check parsed TOML against :data:`SCHEMA`; defaults filled, paths resolved.
 
@@ -158,7 +176,10 @@ def validate_problem(data, source="<problem>", base_dir="."):
     """
     out, ctx = validate(data, SCHEMA, source, base_dir, dim_key=("mesh", "dim"))
     m = out["mesh"]
-    if m["file"] is None:
+    edges = [a for a in "xyz" if m[a] is not None]
+    if edges:
+        _check_edges(ctx, m, edges)
+    elif m["file"] is None:
         if m["size"] is None or m["cells"] is None:
             ctx.fail("needs size and cells, or a mesh file", "[mesh]")
         if any(c != int(c) for c in m["cells"]):

@@ -35,20 +35,31 @@ __all__ = ["build_farm", "build_loads", "build_macro", "build_models", "build_po
            "clone_rve", "initial_stress_check", "model_factory", "read_mesh", "spot_of"]
 
 
+def _mesh(problem):
+    """The mesh of ``[mesh]``: structured, graded (element edges per axis) or read."""
+    from .macro import ELEMENTS, structured_mesh, tensor_mesh
+
+    m = problem["mesh"]
+    if m["x"] is not None:
+        return tensor_mesh(m["element"], [m[a] for a in "xyz"[:m["dim"]]])
+    if m["file"] is None:
+        return structured_mesh(m["element"], m["size"], [int(c) for c in m["cells"]])
+    src = problem["source"]
+    mesh = read_mesh(m["file"], f"{src}: [mesh]")
+    if not isinstance(mesh, ELEMENTS[m["element"]][0]):
+        raise SceneError(f"{src}: [mesh] file holds a {type(mesh).__name__}, "
+                         f"element \"{m['element']}\" needs a "
+                         f"{ELEMENTS[m['element']][0].__name__}")
+    return mesh
+
+
 def build_macro(problem):
     """The :class:`~hmm.macro.Macro` of a validated problem; boundary names checked."""
-    from .macro import ELEMENTS, Macro, structured_mesh
+    from .macro import Macro
 
     src = problem["source"]
     m = problem["mesh"]
-    if m["file"] is None:
-        mesh = structured_mesh(m["element"], m["size"], [int(c) for c in m["cells"]])
-    else:
-        mesh = read_mesh(m["file"], f"{src}: [mesh]")
-        if not isinstance(mesh, ELEMENTS[m["element"]][0]):
-            raise SceneError(f"{src}: [mesh] file holds a {type(mesh).__name__}, "
-                             f"element \"{m['element']}\" needs a "
-                             f"{ELEMENTS[m['element']][0].__name__}")
+    mesh = _mesh(problem)
     if mesh.t.shape[1] == 0:
         raise SceneError(f"{src}: [mesh] has no elements")
     try:

@@ -48,6 +48,9 @@ SCHEMA = {
                     doc="Edge lengths of the rectangle/box [0, size]."),
         "cells": Key("vector", range=Range(1.0), doc="Elements along each axis."),
         "file": Key("path", doc="A mesh file scikit-fem reads (instead of size/cells)."),
+        **{a: Key("coordinates", "m",
+                  doc=f"The element edges along {a} (instead of size and cells, "
+                      f"given for every axis): a graded mesh.") for a in "xyz"},
     }),
     "boundary": Section(doc="Named parts of the mesh's boundaries (a footing on the top "
                             "face, say): the facets of `of` whose midpoints lie in the "

@@ -286,6 +286,42 @@ def test_retaining_wall_small_passive_pressure(tmp_path):
         np.testing.assert_allclose(means[a], couple[:, 0, a].reshape(2, 4).mean(axis=1))
 
 
+def test_retaining_wall_in_the_reference_geometry_small(tmp_path):
+    """The reference-geometry file at small size (a graded 2 x 2 mesh whose lower row
+    is the toe, 30-disk RVEs, the wall advanced 0.4 mm in two steps). At rest the
+    wall carries the RVEs' 20 kPa over its height plus its share of the toe's top
+    vertex (quadratic elements: a sixth of the toe), to 1 %; K = F / F_0 rises with
+    every step; the supports balance the surcharge vertically and the wall's push
+    horizontally."""
+    import h5py
+
+    from hmm.run import run_problem
+
+    prob = _problem("retaining_wall_reference")
+    assert prob["micro"]["mu_roll"] > 0.0 and prob["solver"]["kinematics"] == "finite"
+    q, box = prob["pressure"][0]["value"], {b["name"]: b for b in prob["boundary"]}
+    height, toe = (box[n]["hi"][1] - box[n]["lo"][1] for n in ("wall", "toe"))
+    length = prob["mesh"]["x"][-1]
+    prob["mesh"]["x"] = [0.0, length / 2.0, length]
+    prob["mesh"]["y"] = [0.0, toe, toe + height]
+    prob["micro"]["count"] = 30
+    prob["load"]["steps"] = 2
+    prob["dirichlet"][0]["value"] = -0.0004
+    run_problem(prob, tmp_path, progress=False)
+    with h5py.File(tmp_path / "fields.h5") as f:
+        force = {b: f[f"curve/force/{b}"][()] for b in ("wall", "toe", "bottom", "left")}
+    wall = -force["wall"][:, 0]
+    assert wall[0] == pytest.approx(q * (height + toe / 6.0), rel=1e-2)
+    assert np.all(np.diff(wall / wall[0]) > 0.05)
+    # balance to the file's Newton tolerance (1e-2 on the displacement correction;
+    # its residual is not checked): 1 % at rest, 2 % once the wall moves
+    up = sum(f[:, 1] for f in force.values())
+    assert up[0] == pytest.approx(q * length, rel=1e-2)
+    assert up[-1] == pytest.approx(q * length, rel=2e-2)
+    across = sum(f[:, 0] for f in force.values())
+    assert abs(across[0]) < 1e-2 * wall[0] and np.all(np.abs(across) < 2e-2 * wall)
+
+
 def test_strip_footing_small_load_settlement(tmp_path):
     """The footing file at small size (4 x 4 cells, 20-disk RVEs, 0.3 mm in two
     steps), under its finite kinematics and again under small kinematics: at the

@@ -255,6 +255,15 @@ def _check_value(ctx, where, key, spec, value):
                      f"got {_show(value)}", where)
         return [_number(ctx, where, f"{key}[{i}]", spec, v)
                 for i, v in enumerate(value)]
+    if t == "coordinates":
+        if not isinstance(value, list) or len(value) < 2:
+            ctx.fail(f"{key} must be an array of at least 2 increasing numbers, got "
+                     f"{_show(value)}", where)
+        xs = [_number(ctx, where, f"{key}[{i}]", spec, v) for i, v in enumerate(value)]
+        if any(b <= a for a, b in zip(xs, xs[1:], strict=False)):
+            ctx.fail(f"{key} must increase from each number to the next, got "
+                     f"{_show(value)}", where)
+        return xs
     if t == "tensor":
         if not isinstance(value, list):
             return _number(ctx, where, key, spec, value, f"a number or {ctx.dim} rows "
@@ -353,6 +362,7 @@ def _suggest(name, known):
 def _describe(spec):
     kind = {"vector": "array of dim numbers", "radius": "number or [min, max]",
             "tensor": "number or dim x dim array",
+            "coordinates": "array of increasing numbers",
             "path": "file name", "str": "string", "int": "integer", "float": "number",
             "bool": "boolean", "axes": "list of axis names",
             "pair": "two names"}[spec.type]

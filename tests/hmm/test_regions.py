@@ -57,6 +57,54 @@ def test_bad_cut_boundaries_name_the_key(edit, message):
     assert "[[boundary]] #1" in str(err.value) and "\n" not in str(err.value)
 
 
+def _graded(prob, x, y):
+    prob = copy.deepcopy(prob)
+    del prob["mesh"]["size"], prob["mesh"]["cells"]
+    prob["mesh"].update(x=x, y=y)
+    return prob
+
+
+def test_a_graded_mesh_has_its_edges_and_passes_the_patch_test(tmp_path):
+    """Element edges given per axis: a uniform choice builds the structured mesh's
+    problem to round-off; a graded one (a row 0.03 high, as under a retaining wall's
+    toe) has a vertex on every edge, a boundary cut at the row's top holds that row
+    alone, and the uniaxial compression stays uniform, at the plane-strain closed
+    form, in every element."""
+    uniform = _graded(ELASTIC, [0.0, 0.25, 0.5, 0.75, 1.0], [0.0, 0.5, 1.0])
+    u0 = run_problem(validate_problem(ELASTIC), tmp_path / "cells", progress=False)
+    u1 = run_problem(validate_problem(uniform), tmp_path / "edges", progress=False)
+    np.testing.assert_allclose(u1["u"], u0["u"], rtol=0, atol=1e-15)
+    graded = _graded(ELASTIC, [0.0, 0.1, 0.4, 1.0], [0.0, 0.03, 0.2, 1.0])
+    graded["boundary"] = [{"name": "toe", "of": "right", "lo": [1.0, 0.0],
+                           "hi": [1.0, 0.03]}]
+    prob = validate_problem(graded)
+    mesh = build_macro(prob).mesh
+    assert sorted(set(mesh.p[1].round(12))) == [0.0, 0.03, 0.2, 1.0]
+    assert len(mesh.boundaries["toe"]) == 1
+    run_problem(prob, tmp_path / "graded", progress=False)
+    import h5py
+
+    with h5py.File(tmp_path / "graded" / "fields.h5") as f:
+        sig = f["steps/00001/gauss/stress"][()]
+    e, nu = 1e6, 0.3
+    np.testing.assert_allclose(sig[:, 1, 1], e * -0.01 / (1.0 - nu**2), rtol=1e-10)
+    np.testing.assert_allclose(sig[:, 0, 0], 0.0, atol=1e-6)
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda m: m.update(x=[0.0, 0.5, 0.5, 1.0]), "x must increase from each number"),
+    (lambda m: m.update(x=[1.0]), "x must be an array of at least 2 increasing"),
+    (lambda m: m.pop("y"), r"needs the element edges along every axis \(x, y\)"),
+    (lambda m: m.update(size=[1.0, 1.0]), "takes the element edges x, y, or size"),
+])
+def test_bad_element_edges_name_the_key(edit, message):
+    prob = _graded(ELASTIC, [0.0, 0.5, 1.0], [0.0, 1.0])
+    edit(prob["mesh"])
+    with pytest.raises(SceneError, match=message) as err:
+        validate_problem(prob)
+    assert "[mesh]" in str(err.value) and "\n" not in str(err.value)
+
+
 def test_imperfection_needs_dem_points():
     prob = copy.deepcopy(ELASTIC)
     prob["imperfection"] = [{"center": [0.5, 0.5], "radius": 0.1}]

@@ -181,7 +181,8 @@ def validate_problem(data, source="<problem>", base_dir="."):
         _check_edges(ctx, m, edges)
     elif m["file"] is None:
         if m["size"] is None or m["cells"] is None:
-            ctx.fail("needs size and cells, or a mesh file", "[mesh]")
+            ctx.fail("needs size and cells, the element edges (x, y, z), or a mesh file",
+                     "[mesh]")
         if any(c != int(c) for c in m["cells"]):
             ctx.fail(f"cells must be integers, got {m['cells']}", "[mesh]")
         try:

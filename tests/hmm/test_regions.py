@@ -96,6 +96,7 @@ def test_a_graded_mesh_has_its_edges_and_passes_the_patch_test(tmp_path):
     (lambda m: m.update(x=[1.0]), "x must be an array of at least 2 increasing"),
     (lambda m: m.pop("y"), r"needs the element edges along every axis \(x, y\)"),
     (lambda m: m.update(size=[1.0, 1.0]), "takes the element edges x, y, or size"),
+    (lambda m: [m.pop(a) for a in "xy"], r"needs size and cells, the element edges"),
 ])
 def test_bad_element_edges_name_the_key(edit, message):
     prob = _graded(ELASTIC, [0.0, 0.5, 1.0], [0.0, 1.0])

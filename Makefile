@@ -100,7 +100,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/hopper_beverloo.py
 	$(BIN)/python benchmarks/cold_start.py
 	$(BIN)/python benchmarks/compile_memory.py
-	NO_PARALLEL=1 $(BIN)/python benchmarks/loop_compile.py
+	BASE=090a134 NO_PARALLEL=1 $(BIN)/python benchmarks/loop_compile.py
+	BASE=5972a47 $(BIN)/python benchmarks/loop_compile.py
 	$(BIN)/python benchmarks/output_driver.py
 	$(BIN)/python benchmarks/triaxial_3d.py
 	$(BIN)/python benchmarks/cost_model.py

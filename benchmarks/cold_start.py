@@ -3,8 +3,9 @@
 Each kernel family is compiled by a tiny run in a fresh process with an empty numba
 cache (cold), then run again on the cache it left (warm); the family's compile time is
 the difference. ``demo`` is what ``make demo`` runs (``hmm demo``), cold and warm.
-Families: ``sphere`` (a 3D scene of spheres and walls), ``rve2`` and ``rve3`` (a
-periodic RVE of disks or spheres: generation, consolidation and one strain call),
+Families: ``sphere`` (a 3D scene of spheres and a wall), ``rve2`` and ``rve3`` (a
+periodic RVE of disks or spheres: generation and consolidation, one strain call and its
+tangent),
 ``shape2`` and ``shape3`` (polygons or boxes on a floor), ``peridynamics`` (a 2D LPS
 plate). One thread, medians over REPS.
 

@@ -91,6 +91,18 @@ def worker_command(script, args, procs=1):
     return cmd
 
 
+def launch(script, args, procs=1, timeout=3600):
+    """Run ``script``'s worker of ``args`` on ``procs`` ranks (one thread each,
+    :func:`worker_command`); its result with the load average at the start, or
+    RuntimeError naming the worker and why it failed."""
+    load = loadavg()
+    r = run_result(worker_command(script, args, procs), worker_env(1), REPO, timeout)
+    if not r.get("ok"):
+        raise RuntimeError(f"{' '.join(map(str, args))} failed: {r['error']}")
+    r.pop("ok")
+    return dict(r, loadavg=load)
+
+
 def run_result(cmd, env, cwd, timeout=3600):
     """Run ``cmd``; the dict of its ``RESULT {json}`` line, or ``ok: False`` with why."""
     t0 = time.perf_counter()

@@ -114,16 +114,6 @@ def run_sample(cells, packing, out_dir):
             "displacement": moved.tolist()}
 
 
-def launch(args, procs):
-    cmd = C.worker_command(__file__, [str(a) for a in args], procs)
-    load = C.loadavg()
-    r = C.run_result(cmd, C.worker_env(1), C.REPO, timeout=8 * 3600)
-    if not r.get("ok"):
-        raise RuntimeError(f"{args[0]} failed: {r['error']}")
-    r.pop("ok")
-    return dict(r, loadavg=load)
-
-
 def rankine(phi_deg):
     """Rankine's (and, for a smooth vertical wall and a level backfill, Coulomb's)
     passive earth-pressure coefficient."""
@@ -228,11 +218,12 @@ def main():
                          "processes": procs, "rve_test": {"axial_strain": RVE_STRAIN,
                                                           "increment": RVE_INCREMENT}}}
     lab_dir = SCRATCH / ("rve" + tag(None, count))
-    data["rve_test"] = launch(["rve", count, lab_dir], 1)
+    data["rve_test"] = C.launch(__file__, ["rve", count, lab_dir], 1)
     print(f"RVE test: peak {data['rve_test']['peak_friction_angle']:.1f} deg, critical "
           f"{data['rve_test']['critical_friction_angle']:.1f} deg", flush=True)
-    data["run"] = launch(["run", cells_env[0] if cells else "-", data["rve_test"]["packing"],
-                          run_dir], procs)
+    data["run"] = C.launch(__file__, ["run", cells_env[0] if cells else "-",
+                                      data["rve_test"]["packing"], run_dir], procs,
+                           timeout=8 * 3600)
     data["rve_test"]["packing"] = C.display_path(data["rve_test"]["packing"])
     score(data)
     r = data["run"]

@@ -264,14 +264,8 @@ def deviation(path, ref, key, scale, upto=None):
 
 def launch(args, procs, cells, count, steps):
     """Run a worker of ``args`` (on ``procs`` ranks); its result."""
-    cmd = C.worker_command(__file__, [*args, "x".join(map(str, cells)), count, steps],
-                           procs)
-    load = C.loadavg()
-    r = C.run_result(cmd, C.worker_env(1), C.REPO, timeout=4 * 3600)
-    if not r.get("ok"):
-        raise RuntimeError(f"{' '.join(args)} failed: {r['error']}")
-    r.pop("ok")
-    return dict(r, loadavg=load)
+    return C.launch(__file__, [*args, "x".join(map(str, cells)), count, steps], procs,
+                    timeout=4 * 3600)
 
 
 def report(name, r):

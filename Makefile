@@ -102,6 +102,8 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/compile_memory.py
 	BASE=090a134 NO_PARALLEL=1 $(BIN)/python benchmarks/loop_compile.py
 	BASE=5972a47 $(BIN)/python benchmarks/loop_compile.py
+	BASE=d8953e6 $(BIN)/python benchmarks/loop_compile.py
+	$(BIN)/python benchmarks/law_call.py
 	$(BIN)/python benchmarks/output_driver.py
 	$(BIN)/python benchmarks/triaxial_3d.py
 	$(BIN)/python benchmarks/cost_model.py

@@ -45,15 +45,16 @@ Layout (SI units throughout; ``d`` is ``[simulation] dim``)::
     mu = 0.3                      # optional: the wall's own material, as [[walls]]
 
     [contact]                     # or several [[contact]] with pair = ["a", "b"]
-    law = "linear"                # required: "linear" or "hertz_mindlin"
+    law = "linear"                # required: a law of dem.contact.laws.LAWS (each
+                                  # with its keys: docs/scene_reference.md)
     kn = 1e4                      # linear: [N/m], required
     kt = 5e3                      # linear: [N/m]
     gamma_n = 0.0                 # linear: [N s/m]
     gamma_t = 0.0                 # linear: [N s/m]
     young = 1e7                   # hertz_mindlin: [Pa], required
     poisson = 0.3                 # hertz_mindlin: in [0, 0.5), required
-    mu = 0.5                      # both laws: friction coefficient, required
-    restitution = 0.5             # both laws: in (0, 1], default 1
+    mu = 0.5                      # every law: friction coefficient, required
+    restitution = 0.5             # every law: in (0, 1], default 1
 
     [output]
     dir = "output/scene"          # relative to the working directory

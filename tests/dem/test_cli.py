@@ -197,7 +197,8 @@ BAD = {
     "dt above stable": (_set("simulation", "dt", 1.0),
                         ["[simulation] dt = 1 s exceeds the stable time step dt_stable"]),
     "bad choice": (_set("contact", "law", "hooke"),
-                   ['[contact] law must be "linear" or "hertz_mindlin", got "hooke"']),
+                   ['[contact] law must be "linear", "hertz_mindlin" or "hertz_sjkr", '
+                    'got "hooke"']),
     "key of another law": (_set("contact", "young", 1e7),
                            ['[contact] young is not used with law = "linear"']),
     "wall normal zero": (_edit_wall(normal=[0.0, 0.0, 0.0]),

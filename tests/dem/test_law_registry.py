@@ -26,9 +26,10 @@ row_size = _python(dispatch.row_size)
 
 
 def test_the_registry_holds_the_built_in_laws_in_code_order():
-    assert list(LAWS) == ["linear", "hertz_mindlin"]
-    assert [cls.code for cls in LAWS.values()] == [0, 1]
+    assert list(LAWS) == ["linear", "hertz_mindlin", "hertz_sjkr"]
+    assert [cls.code for cls in LAWS.values()] == [0, 1, 2]
     assert LAWS["linear"] is dem.LinearSpring and LAWS["hertz_mindlin"] is dem.HertzMindlin
+    assert LAWS["hertz_sjkr"] is laws.HertzSJKR
 
 
 def test_scene_schema_and_wall_keys_come_from_the_laws():
@@ -36,16 +37,20 @@ def test_scene_schema_and_wall_keys_come_from_the_laws():
     assert keys["law"].choices == tuple(LAWS)
     for name, cls in LAWS.items():
         for key in cls.keys():
-            assert keys[key].only == (name,), key
+            assert name in keys[key].only, key
         assert set(cls.wall_keys()) <= set(WALL_KEYS[name])
     assert keys["kn"].unit == "N/m" and keys["young"].unit == "Pa"
+    # Hertz-Mindlin's keys mean the same in the cohesive law: they are shared
+    assert keys["young"].only == ("hertz_mindlin", "hertz_sjkr")
+    assert keys["cohesion"].only == ("hertz_sjkr",) and keys["cohesion"].unit == "J/m^3"
 
 
 @pytest.mark.parametrize("law", [
     dem.LinearSpring(kn=1e5, kt=4e4, mu=0.3, gamma_n=2.0, restitution=0.7),
     dem.HertzMindlin(young=(7e7, math.inf), poisson=0.25, restitution=0.5, mu=0.4,
                      limit_damping=True),
-], ids=["linear", "hertz_mindlin"])
+    laws.HertzSJKR(young=7e7, poisson=0.25, restitution=0.5, mu=0.4, cohesion=2e5),
+], ids=["linear", "hertz_mindlin", "hertz_sjkr"])
 def test_python_dispatch_is_the_laws_own_kernel(law):
     """The dispatch functions called from Python (as with NUMBA_DISABLE_JIT) reach the
     law's kernels, with its row length."""
@@ -56,8 +61,8 @@ def test_python_dispatch_is_the_laws_own_kernel(law):
     f = apply_law(law.code, *args, h1, 0, 1e-5)
     g = _python(law.force)(*args, h2, 0, 1e-5)
     assert f == g and np.array_equal(h1, h2)
-    assert normal_stiffness(law.code, 1e-4, 5e-3, p, 0, 0) == _python(law.stiffness)(
-        1e-4, 5e-3, p[0, 0])[0]
+    assert normal_stiffness(law.code, 1e-4, 5e-3, p, 0, 0) == _python(law.normal_stiffness)(
+        1e-4, 5e-3, p, 0, 0)
 
 
 def test_a_table_builds_the_law_its_file_names():
@@ -70,7 +75,7 @@ def test_a_table_builds_the_law_its_file_names():
     assert law.spec() == ref.spec()
     assert laws.law_from_spec(law.spec()).spec() == ref.spec()
     with pytest.raises(ValueError, match="unknown contact law 'glue'; known: linear, "
-                                         "hertz_mindlin"):
+                                         "hertz_mindlin, hertz_sjkr"):
         laws.law_class("glue")
 
 
@@ -114,9 +119,9 @@ def toy_registered():
 
 
 def test_a_new_law_joins_the_schema_in_code_order(toy_registered):
-    assert list(LAWS) == ["linear", "hertz_mindlin", "toy"]
+    assert list(LAWS) == ["linear", "hertz_mindlin", "hertz_sjkr", "toy"]
     keys = laws.contact_keys()
-    assert keys["law"].choices == ("linear", "hertz_mindlin", "toy")
+    assert keys["law"].choices == ("linear", "hertz_mindlin", "hertz_sjkr", "toy")
     # a key two laws share, with the same meaning, belongs to both
     assert keys["kn"].only == ("linear", "toy")
 
@@ -144,13 +149,13 @@ def test_a_law_that_breaks_the_contract_is_refused(toy_registered):
         register(variant(name="toy3", code=6, energy=None))
     with pytest.raises(ValueError, match="name must be an identifier"):
         register(variant(name="two words", code=9))
-    assert list(LAWS) == ["linear", "hertz_mindlin", "toy"]
+    assert list(LAWS) == ["linear", "hertz_mindlin", "hertz_sjkr", "toy"]
 
 
 def test_a_law_registered_after_the_build_is_refused_by_the_model(toy_registered):
     """The compiled dispatch is written once, for the laws of dem/contact/laws/: a law
     registered later is in the schema but cannot run, and says why."""
-    assert _Toy.code not in dispatch.BUILT and dispatch.BUILT == (0, 1)
+    assert _Toy.code not in dispatch.BUILT and dispatch.BUILT == (0, 1, 2)
     with pytest.raises(ValueError, match="contact law 'toy' was registered after "
                                          "dem.contact.laws was loaded"):
         dem.ContactModel(_Toy())

@@ -29,6 +29,7 @@ from . import dispatch
 from .dispatch import contact_energy, contact_stiffness
 from .hertz_mindlin import (HertzMindlin, energy_hertz_mindlin, law_hertz_mindlin,
                             stiffness_hertz_mindlin)
+from .hertz_sjkr import HertzSJKR
 from .linear import Elastic, LinearSpring, Viscoelastic, energy_linear, law_linear, stiffness_linear
 from .tangential import N_HIST, tangential
 
@@ -40,8 +41,8 @@ row_size = dispatch.row_size
 law_stiffness = dispatch.law_stiffness
 law_energy = dispatch.law_energy
 
-__all__ = ["LAWS", "N_HIST", "Elastic", "HertzMindlin", "Law", "LinearSpring", "Viscoelastic",
-           "apply_law", "by_code", "common_keys", "contact_energy", "contact_keys",
+__all__ = ["LAWS", "N_HIST", "Elastic", "HertzMindlin", "HertzSJKR", "Law", "LinearSpring",
+           "Viscoelastic", "apply_law", "by_code", "common_keys", "contact_energy", "contact_keys",
            "contact_stiffness", "energy_hertz_mindlin", "energy_linear", "law_class",
            "law_energy", "law_from_spec", "law_hertz_mindlin", "law_linear", "law_stiffness",
            "normal_stiffness", "register", "row_size", "stiffness_hertz_mindlin",

@@ -369,7 +369,11 @@ class RVE:
 
         With ``friction`` the consolidation first runs at that friction coefficient
         (lower than the law's for a denser packing) with the normal stresses alone
-        servoed, then the law's friction is restored for the final relaxation.
+        servoed, then the law's friction is restored for the final relaxation. A first
+        stage that does not settle within ``max_relax_steps`` (a small frictionless
+        packing can creep under its locked shear stress faster than the servo corrects
+        it) is logged and left where it stopped: the second, at the law's friction
+        with every component servoed, finishes the consolidation or raises.
         """
         if not (math.isfinite(p0) and p0 > 0.0):
             raise ValueError(f"p0 must be positive and finite, got {p0}")
@@ -383,8 +387,15 @@ class RVE:
         try:
             if friction is not None:  # a fragile frictionless packing: normal stresses
                 self.set_friction(friction)
-                self._drive(zero, target, np.eye(self.dim, dtype=bool), progress)
-                self.set_friction(working)
+                try:
+                    self._drive(zero, target, np.eye(self.dim, dtype=bool), progress)
+                except PackingApart:
+                    raise
+                except RelaxationError as err:
+                    log.warning("consolidation at friction %g did not settle, going on at "
+                                "the law's: %s", friction, err)
+                finally:
+                    self.set_friction(working)
             return self._drive(zero, target, full, progress)
         finally:
             self.max_step_strain = saved

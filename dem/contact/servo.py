@@ -9,7 +9,8 @@ stress-controlled component from its error and the contact tangent (a proportion
 servo, time constant ``4 check_every dt``: :func:`servo_rates`), and ends the drive when
 every servo is on target and the unbalanced-force ratio is below ``tol``. A servo that
 stalls while the packing is at rest, once half the step cap is spent, has its gain
-doubled (:func:`stall_watch`, :attr:`dem.rve.RVE.STALL_CHECKS`). The sphere loop calls
+doubled (:func:`stall_watch`, :attr:`dem.rve.RVE.STALL_CHECKS`), and halved again at
+any check where its worst error changed sign (:func:`overshoot_watch`). The sphere loop calls
 it at its checks (:mod:`dem.contact.loops`), so a drive of spheres or disks is one
 compiled loop; the loop of level-set shapes runs chunk by chunk with the same check
 called between chunks (:func:`dem.rve_servo.drive`).
@@ -85,13 +86,23 @@ def servo_rates(d, stress, tangent, target, mask, gain, settings, lgrad):
 
 
 @kernel
-def stall_watch(state, worst, worst_sign, checks):
-    """One check of a servo at rest and off target: its gain doubled after ``checks``
-    checks without a 10 % gain on its best error, halved (to at least 1) on an
-    overshoot. Returns 1 when the gain doubled, else 0."""
-    boosted = 0
+def overshoot_watch(state, worst_sign):
+    """Every check of a servo: a doubled gain is halved (to at least 1) when the worst
+    error changed sign since the last check (an overshoot), moving or at rest. A gain
+    doubled for a packing at rest would otherwise stay when the packing moves again,
+    and a packing that comes apart then swings at the largest strain rate for good:
+    jammed past the target at one check, loose at the next."""
     if state[ST_GAIN] > 1.0 and worst_sign == -state[ST_LAST_SIGN]:
-        state[ST_GAIN] = max(1.0, 0.5 * state[ST_GAIN])  # overshot
+        state[ST_GAIN] = max(1.0, 0.5 * state[ST_GAIN])
+    state[ST_LAST_SIGN] = worst_sign
+
+
+@kernel
+def stall_watch(state, worst, checks):
+    """One check of a servo at rest and off target: its gain doubled after ``checks``
+    checks without a 10 % gain on its best error (an overshoot halves it again:
+    :func:`overshoot_watch`). Returns 1 when the gain doubled, else 0."""
+    boosted = 0
     if worst < 0.9 * state[ST_BEST]:
         state[ST_BEST] = worst
         state[ST_STALLED] = 0.0
@@ -102,7 +113,6 @@ def stall_watch(state, worst, worst_sign, checks):
         state[ST_BEST] = worst
         state[ST_STALLED] = 0.0
         boosted = 1
-    state[ST_LAST_SIGN] = worst_sign
     return boosted
 
 
@@ -139,10 +149,11 @@ def drive_check(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, lgrad, f
     if servoed:
         servo_ok, worst, sign = servo_rates(d, s.stress, s.tangent, s.target, s.mask,
                                             st[ST_GAIN], se, lgrad)
+        overshoot_watch(st, sign)
         late = steps - n_load >= int(se[SET_MAX_RELAX]) // 2
         if late and not servo_ok and unbalanced < check.tol:
             # at rest, off target, half the cap spent: still closing in?
-            st[ST_BOOSTS] += stall_watch(st, worst, sign, se[SET_STALL_CHECKS])
+            st[ST_BOOSTS] += stall_watch(st, worst, se[SET_STALL_CHECKS])
     n_chunk = check.every
     if done_load < n_load:
         n_chunk = min(n_chunk, n_load - done_load)

@@ -99,6 +99,7 @@ bench: $(STAMP)
 	BASE=7fd19e3 RUNS=5 $(BIN)/python benchmarks/mesh_throughput.py
 	$(BIN)/python benchmarks/hopper_beverloo.py
 	$(BIN)/python benchmarks/cold_start.py
+	$(BIN)/python benchmarks/cold_walk.py
 	$(BIN)/python benchmarks/compile_memory.py
 	BASE=090a134 NO_PARALLEL=1 $(BIN)/python benchmarks/loop_compile.py
 	BASE=5972a47 $(BIN)/python benchmarks/loop_compile.py

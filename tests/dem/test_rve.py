@@ -488,3 +488,25 @@ def test_a_frictionless_stage_that_creeps_is_finished_at_the_law_s_friction(capl
     assert np.diag(out["stress"]) == pytest.approx([-2e4, -2e4], rel=1e-3)
     assert abs(out["stress"][0, 1]) <= packing.SHEAR_TOL * 2e4
     assert packing.sim.step > packing.max_relax_steps  # both stages ran
+
+
+@pytest.mark.parametrize("law, dim, warned", [
+    (dem.LinearSpring(kn=10.0), 2, "overlaps will be large"),
+    (dem.LinearSpring(kn=1e12), 2, "about 1e+08 N/m suits this p0"),
+    (dem.LinearSpring(kn=1e8), 2, None),
+    # Hertz: 2D forces are per metre of thickness, a sphere's modulus is far too soft
+    (dem.HertzMindlin(young=7e8, poisson=0.3, restitution=0.5, mu=0.5), 2,
+     "the contact stiffness at the reference overlap over p0 r^0 = 1.72 is below 1e2"),
+    (dem.HertzMindlin(young=7e10, poisson=0.3, restitution=0.5, mu=0.5), 2, None),
+    (dem.HertzMindlin(young=7e10, poisson=0.3, restitution=0.5, mu=0.5), 3, None),
+], ids=["linear-soft", "linear-stiff", "linear", "hertz-2d-soft", "hertz-2d", "hertz-3d"])
+def test_contacts_too_soft_or_stiff_for_the_pressure_are_warned_of(law, dim, warned, caplog):
+    """Before consolidating, generate judges the law's stiffness against p0 = 100 kPa on
+    1 mm grains: a Hertz law with a sphere's modulus in 2D would pass half a radius of
+    overlap (the consolidation then fails after thousands of steps)."""
+    with caplog.at_level("WARNING", logger="dem.rve"):
+        rve.warn_contact_scale(law, 1e5, 1e-3, dim)
+    if warned is None:
+        assert not caplog.records
+    else:
+        assert len(caplog.records) == 1 and warned in caplog.text

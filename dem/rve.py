@@ -52,7 +52,7 @@ from .rve_measure import measure_periodic
 from .rve_servo import drive
 from .limits import check_particle_scales
 from .observers import couple_stress
-from .rve_settings import check_settings, scale_masses, store_settings
+from .rve_settings import check_settings, scale_masses, store_settings, warn_contact_scale
 from .simulation import Simulation, SimulationError
 from .timestep import quasi_static_dt
 from .packings import loose_cloud, particle_radii, shape_bodies, solid_volume
@@ -519,35 +519,6 @@ class RVE:
 
 #: the contact geometry rows a sphere RVE passes (it has none)
 _NO_GEOMETRY = np.zeros((0, 7))
-
-
-def warn_contact_scale(law, p0, r, dim):
-    """Log a warning when the contacts of ``law`` are too soft or too stiff for a
-    packing of mean radius ``r`` [m] at ``p0`` [Pa]; returns the ratio judged.
-
-    A linear law's ``kn / (p0 r^(d-2))`` should lie in [1e2, 1e5]. Another law (whose
-    stiffness grows with the overlap, as Hertz's) is judged by its stiffness at its
-    reference overlap (:meth:`Law.critical_stiffness`, 5 % of the radius for Hertz),
-    and only for softness: below 1e2 its overlaps at ``p0`` pass that overlap (in 2D
-    the forces are per metre of thickness, so a modulus that suits spheres is far too
-    soft for disks)."""
-    scale = p0 * r ** (dim - 2)
-    kn = getattr(law, "kn", None)
-    if kn is None:
-        kappa = law.critical_stiffness(r) / scale
-        if kappa < 1e2:
-            log.warning("the contact stiffness at the reference overlap over p0 r^%d = %.3g "
-                        "is below 1e2: overlaps will be large (soft contacts); a stiffer "
-                        "material suits this p0", dim - 2, kappa)
-        return kappa
-    kappa = kn / scale  # contact stiffness against the confinement's force per contact
-    if not 1e2 <= kappa <= 1e5:
-        log.warning(
-            "kn / (p0 r^%d) = %.3g is outside [1e2, 1e5]: %s", dim - 2, kappa,
-            "overlaps will be large (soft contacts)" if kappa < 1e2 else
-            "the relaxation will need very many steps (stiff contacts); about "
-            f"{1e3 * scale:.3g} N/m suits this p0")
-    return kappa
 
 
 def generate(dim, n, radius, law, p0, density=2650.0, fractions=None, seed=0,

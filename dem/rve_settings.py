@@ -1,7 +1,11 @@
 """The relaxation settings every RVE boundary type shares (:class:`dem.rve.RVE` and
-:class:`dem.rve_box.BoxRVE`): their checks, density scaling and storage."""
+:class:`dem.rve_box.BoxRVE`): their checks, density scaling and storage; and the check
+of a packing's contact stiffness against its pressure."""
 
+import logging
 import math
+
+log = logging.getLogger("dem.rve")  # its warnings are about the packing dem.rve makes
 
 
 def check_settings(mass_scale, max_step_strain, tol, stress_tol, max_relax_steps,
@@ -34,3 +38,32 @@ def store_settings(rve, mass_scale, max_step_strain, tol, stress_tol, max_relax_
     rve.stress_tol = float(stress_tol)
     rve.max_relax_steps = int(max_relax_steps)
     rve.check_every = int(check_every)
+
+
+def warn_contact_scale(law, p0, r, dim):
+    """Log a warning when the contacts of ``law`` are too soft or too stiff for a
+    packing of mean radius ``r`` [m] at ``p0`` [Pa]; returns the ratio judged.
+
+    A linear law's ``kn / (p0 r^(d-2))`` should lie in [1e2, 1e5]. Another law (whose
+    stiffness grows with the overlap, as Hertz's) is judged by its stiffness at its
+    reference overlap (:meth:`Law.critical_stiffness`, 5 % of the radius for Hertz),
+    and only for softness: below 1e2 its overlaps at ``p0`` pass that overlap (in 2D
+    the forces are per metre of thickness, so a modulus that suits spheres is far too
+    soft for disks)."""
+    scale = p0 * r ** (dim - 2)
+    kn = getattr(law, "kn", None)
+    if kn is None:
+        kappa = law.critical_stiffness(r) / scale
+        if kappa < 1e2:
+            log.warning("the contact stiffness at the reference overlap over p0 r^%d = %.3g "
+                        "is below 1e2: overlaps will be large (soft contacts); a stiffer "
+                        "material suits this p0", dim - 2, kappa)
+        return kappa
+    kappa = kn / scale  # contact stiffness against the confinement's force per contact
+    if not 1e2 <= kappa <= 1e5:
+        log.warning(
+            "kn / (p0 r^%d) = %.3g is outside [1e2, 1e5]: %s", dim - 2, kappa,
+            "overlaps will be large (soft contacts)" if kappa < 1e2 else
+            "the relaxation will need very many steps (stiff contacts); about "
+            f"{1e3 * scale:.3g} N/m suits this p0")
+    return kappa

@@ -40,6 +40,70 @@ def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodi
     d = pos.shape[1]
     ns = sphere_ids.shape[0]
     cap = pairs_out.shape[0]
+    coords, start, items = _bin_spheres(pos, sphere_ids, lo, length, n_cells, hinv,
+                                        triclinic)
+    stencil = _stencil(n_cells, periodic)
+    buf = np.empty(64, np.int64)
+    bimg = np.empty((64, d), np.int64)
+    order = np.empty(64, np.int64)
+    n_pairs = 0
+    cell = np.empty(d, np.int64)
+    shift = np.zeros(d)
+    for s in range(ns):
+        i = sphere_ids[s]
+        m = 0
+        for t in range(stencil.shape[0]):
+            ok = True
+            c = 0
+            for a in range(d):
+                ca = coords[s, a] + stencil[t, a]
+                if ca < 0 or ca >= n_cells[a]:
+                    if periodic[a]:
+                        ca = (ca + n_cells[a]) % n_cells[a]
+                    else:
+                        ok = False
+                cell[a] = ca
+            if not ok:
+                continue
+            for a in range(d):
+                c = c * n_cells[a] + cell[a]
+            for q in range(start[c], start[c + 1]):
+                j = sphere_ids[items[q]]
+                if j <= i:
+                    continue
+                cut = radius[i] + radius[j] + skin
+                r2 = _image_distance2(pos, i, j, length, periodic, hmat, hinv, triclinic,
+                                      shift)
+                if r2 < cut * cut:
+                    if m == buf.shape[0]:
+                        nb = np.empty(2 * m, np.int64)
+                        nb[:m] = buf
+                        buf = nb
+                        ni = np.empty((2 * m, d), np.int64)
+                        ni[:m] = bimg
+                        bimg = ni
+                        order = np.empty(2 * m, np.int64)
+                    buf[m] = j
+                    for a in range(d):
+                        bimg[m, a] = -np.int64(shift[a])
+                    m += 1
+        _sort_row(buf, order, m)
+        for u in range(m):
+            if n_pairs < cap:
+                pairs_out[n_pairs, 0] = i
+                pairs_out[n_pairs, 1] = buf[order[u]]
+                for a in range(d):
+                    img_out[n_pairs, a] = bimg[order[u], a]
+            n_pairs += 1
+    return n_pairs
+
+
+@kernel
+def _bin_spheres(pos, sphere_ids, lo, length, n_cells, hinv, triclinic):
+    """Each sphere's cell coordinates ``(ns, d)`` and the cells' members as a CSR pair
+    ``(start, items)``: cell ``c`` holds ``items[start[c]:start[c + 1]]``, in order."""
+    d = pos.shape[1]
+    ns = sphere_ids.shape[0]
     n_tot = 1
     for a in range(d):
         n_tot *= n_cells[a]
@@ -74,7 +138,14 @@ def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodi
         c = cell_of[s]
         items[fill[c]] = s
         fill[c] += 1
-    # neighbour-cell offsets per axis, deduplicated when an axis has < 3 cells
+    return coords, start, items
+
+
+@kernel
+def _stencil(n_cells, periodic):
+    """The neighbour-cell offsets ``(n_stencil, d)``, decoded once, not per particle;
+    deduplicated on an axis with fewer than 3 cells."""
+    d = n_cells.shape[0]
     offs = np.empty((d, 3), np.int64)
     n_off = np.empty(d, np.int64)
     for a in range(d):
@@ -90,94 +161,58 @@ def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodi
     n_stencil = 1
     for a in range(d):
         n_stencil *= n_off[a]
-    stencil = np.empty((n_stencil, d), np.int64)  # decoded once, not per particle
+    stencil = np.empty((n_stencil, d), np.int64)
     for t in range(n_stencil):
         rem = t
         for a in range(d - 1, -1, -1):
             stencil[t, a] = offs[a, rem % n_off[a]]
             rem //= n_off[a]
-    buf = np.empty(64, np.int64)
-    bimg = np.empty((64, d), np.int64)
-    order = np.empty(64, np.int64)
-    n_pairs = 0
-    cell = np.empty(d, np.int64)
-    shift = np.zeros(d)
-    for s in range(ns):
-        i = sphere_ids[s]
-        m = 0
-        for t in range(n_stencil):
-            ok = True
-            c = 0
-            for a in range(d):
-                ca = coords[s, a] + stencil[t, a]
-                if ca < 0 or ca >= n_cells[a]:
-                    if periodic[a]:
-                        ca = (ca + n_cells[a]) % n_cells[a]
-                    else:
-                        ok = False
-                cell[a] = ca
-            if not ok:
-                continue
-            for a in range(d):
-                c = c * n_cells[a] + cell[a]
-            for q in range(start[c], start[c + 1]):
-                j = sphere_ids[items[q]]
-                if j <= i:
-                    continue
-                cut = radius[i] + radius[j] + skin
-                r2 = 0.0
-                if triclinic:
-                    for a in range(d):
-                        ds = 0.0
-                        for e in range(d):
-                            ds += hinv[a, e] * (pos[j, e] - pos[i, e])
-                        shift[a] = np.floor(ds + 0.5)
-                    for a in range(d):
-                        dx = pos[j, a] - pos[i, a]
-                        for e in range(d):
-                            dx -= hmat[a, e] * shift[e]
-                        r2 += dx * dx
-                else:
-                    for a in range(d):
-                        dx = pos[j, a] - pos[i, a]
-                        if periodic[a]:
-                            sh = np.floor(dx / length[a] + 0.5)
-                            dx -= sh * length[a]
-                            shift[a] = sh
-                        else:
-                            shift[a] = 0.0
-                        r2 += dx * dx
-                if r2 < cut * cut:
-                    if m == buf.shape[0]:
-                        nb = np.empty(2 * m, np.int64)
-                        nb[:m] = buf
-                        buf = nb
-                        ni = np.empty((2 * m, d), np.int64)
-                        ni[:m] = bimg
-                        bimg = ni
-                        order = np.empty(2 * m, np.int64)
-                    buf[m] = j
-                    for a in range(d):
-                        bimg[m, a] = -np.int64(shift[a])
-                    m += 1
-        # insertion sort of this row's slots by j (rows are short)
-        for u in range(m):
-            order[u] = u
-        for u in range(1, m):
-            t = order[u]
-            v = u - 1
-            while v >= 0 and buf[order[v]] > buf[t]:
-                order[v + 1] = order[v]
-                v -= 1
-            order[v + 1] = t
-        for u in range(m):
-            if n_pairs < cap:
-                pairs_out[n_pairs, 0] = i
-                pairs_out[n_pairs, 1] = buf[order[u]]
-                for a in range(d):
-                    img_out[n_pairs, a] = bimg[order[u], a]
-            n_pairs += 1
-    return n_pairs
+    return stencil
+
+
+@kernel(inline=True)
+def _image_distance2(pos, i, j, length, periodic, hmat, hinv, triclinic, shift):
+    """Squared distance from ``i`` to the nearest image of ``j``; that image's shift
+    (in cell vectors, or lengths on a rectangular grid) is written to ``shift``."""
+    d = pos.shape[1]
+    r2 = 0.0
+    if triclinic:
+        for a in range(d):
+            ds = 0.0
+            for e in range(d):
+                ds += hinv[a, e] * (pos[j, e] - pos[i, e])
+            shift[a] = np.floor(ds + 0.5)
+        for a in range(d):
+            dx = pos[j, a] - pos[i, a]
+            for e in range(d):
+                dx -= hmat[a, e] * shift[e]
+            r2 += dx * dx
+    else:
+        for a in range(d):
+            dx = pos[j, a] - pos[i, a]
+            if periodic[a]:
+                sh = np.floor(dx / length[a] + 0.5)
+                dx -= sh * length[a]
+                shift[a] = sh
+            else:
+                shift[a] = 0.0
+            r2 += dx * dx
+    return r2
+
+
+@kernel(inline=True)
+def _sort_row(buf, order, m):
+    """Insertion sort of a row's first ``m`` slots by ``buf`` into ``order`` (rows are
+    short)."""
+    for u in range(m):
+        order[u] = u
+    for u in range(1, m):
+        t = order[u]
+        v = u - 1
+        while v >= 0 and buf[order[v]] > buf[t]:
+            order[v + 1] = order[v]
+            v -= 1
+        order[v + 1] = t
 
 
 @kernel

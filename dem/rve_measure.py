@@ -66,7 +66,7 @@ def measure_periodic(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, fpa
     ratio, the mean norm of the net contact force on a body over the mean contact
     force norm (infinite without contacts).
     """
-    n, d = pos.shape
+    d = pos.shape[1]
     net_out[:, :] = 0.0
     degree_out[:] = 0
     stress_out[:, :] = 0.0
@@ -103,19 +103,37 @@ def measure_periodic(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, fpa
                 fabric_out[a, b] += nv[a] * nv[b]
         if use_tangent:
             r_eff = radius[i] * radius[j] / (radius[i] + radius[j])
-            p = params[mat_id[i], mat_id[j]]
-            kn, kt = law_stiffness(code, ov, r_eff, p)
-            for a in range(d):
-                for b in range(d):
-                    for c in range(d):
-                        kron = 1.0 if a == c else 0.0
-                        sn = kn * nv[a] * nv[c] + kt * (kron - nv[a] * nv[c])
-                        for e in range(d):
-                            tangent_out[a, b, c, e] += sn * br[b] * br[e]
-    for p_ in range(n):  # the kinetic part of the fluctuations
+            kn, kt = law_stiffness(code, ov, r_eff, params[mat_id[i], mat_id[j]])
+            _add_pair_tangent(d, kn, kt, nv, br, tangent_out)
+    _finish_stress(mass, vel, volume, use_tangent, stress_out, tangent_out)
+    if n_c == 0:
+        return 0, math.inf
+    for a in range(d):
+        for b in range(d):
+            fabric_out[a, b] /= n_c
+    return n_c, force_ratio(net_out, n_c, fsum)
+
+
+@kernel(inline=True)
+def _add_pair_tangent(d, kn, kt, nv, br, tangent_out):
+    """Add one contact's ``(kn n n + kt (I - n n)) (x) l (x) l`` to the tangent (eq 29)."""
+    for a in range(d):
+        for b in range(d):
+            for c in range(d):
+                kron = 1.0 if a == c else 0.0
+                sn = kn * nv[a] * nv[c] + kt * (kron - nv[a] * nv[c])
+                for e in range(d):
+                    tangent_out[a, b, c, e] += sn * br[b] * br[e]
+
+
+@kernel
+def _finish_stress(mass, vel, volume, use_tangent, stress_out, tangent_out):
+    """Add the fluctuations' kinetic part, symmetrise and divide by the volume."""
+    n, d = vel.shape
+    for p in range(n):
         for a in range(d):
             for b in range(d):
-                stress_out[a, b] -= mass[p_] * vel[p_, a] * vel[p_, b]
+                stress_out[a, b] -= mass[p] * vel[p, a] * vel[p, b]
     for a in range(d):
         for b in range(a, d):
             s = 0.5 * (stress_out[a, b] + stress_out[b, a]) / volume
@@ -127,9 +145,3 @@ def measure_periodic(code, pos, vel, mass, radius, mat_id, pairs, img, hmat, fpa
                 for c in range(d):
                     for e in range(d):
                         tangent_out[a, b, c, e] /= volume
-    if n_c == 0:
-        return 0, math.inf
-    for a in range(d):
-        for b in range(d):
-            fabric_out[a, b] /= n_c
-    return n_c, force_ratio(net_out, n_c, fsum)

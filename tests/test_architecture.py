@@ -8,7 +8,9 @@ The asserted rules: no import cycle; ``dem`` never imports ``hmm``; ``mpi4py`` i
 imported in ``hmm/farm.py`` only, and there only inside functions (the suite runs
 serially through the same code); the kernels' status codes are defined in
 ``dem/status.py`` only; no module is longer than 600 lines but those listed in
-:data:`LONG_MODULES` with their reason.
+:data:`LONG_MODULES` with their reason; no function is longer than 100 lines and no
+compiled kernel takes more than 20 arguments but those listed in :data:`LONG_FUNCTIONS`
+and :data:`MANY_ARGUMENTS` with theirs.
 """
 
 import ast
@@ -254,3 +256,95 @@ def test_no_module_over_600_lines():
                              f"with its reason in LONG_MODULES): {unexplained}")
     stale = sorted(set(LONG_MODULES) - set(long))
     assert not stale, f"listed in LONG_MODULES but no longer over {MAX_LINES} lines: {stale}"
+
+
+#: the most lines (``def`` to its end, docstring included) a function may have
+MAX_FUNCTION_LINES = 100
+#: the most arguments a compiled kernel may take
+MAX_KERNEL_ARGS = 20
+_LOOP = ("the time loop: one compiled function per step phase would put each phase's "
+         "arrays through a call, and the step's order is clearest read in one place "
+         "(docs/architecture.md, One step, in order)")
+#: functions allowed above :data:`MAX_FUNCTION_LINES`, each with its reason
+LONG_FUNCTIONS = {
+    "dem/contact/loops.py:stepper": "the factory of the sphere time loop; " + _LOOP,
+    "dem/contact/loops.py:stepper.run_steps": "the sphere time loop; " + _LOOP,
+    "dem/contact/shape_loop.py:shape_stepper": "the factory of the shape time loop; " + _LOOP,
+    "dem/contact/shape_loop.py:shape_stepper.run_shape_steps": "the shape time loop; " + _LOOP,
+}
+_ARRAYS = ("the loop's per-body and per-pair arrays, one argument each: the state bundles "
+           "are not yet threaded through the force kernels")
+#: compiled kernels allowed above :data:`MAX_KERNEL_ARGS`, each with its reason
+MANY_ARGUMENTS = {
+    "dem/contact/kinematics.py:_finish_body": _ARRAYS + " (inlined into the loop)",
+    "dem/contact/rigid.py:_finish_rigid": _ARRAYS + " (inlined into the loop)",
+    "dem/contact/sphere_contacts.py:_sphere_pair": _ARRAYS + " (inlined into the loop)",
+    "dem/contact/shape_contacts.py:pair_force": _ARRAYS,
+    "dem/contact/shape_contacts.py:wall_force": _ARRAYS,
+    "dem/contact/mesh_contacts.py:_mesh_force": _ARRAYS + " (inlined)",
+    "dem/contact/mesh_contacts.py:_mesh_spheres": ("the mesh bundles unpacked into their "
+                                                   "arrays: a tuple of bundles cannot be "
+                                                   "passed from the parallel loop"),
+    "dem/peridynamics/kernels.py:forces": "the peridynamic state, one array each; " + _ARRAYS,
+    "dem/peridynamics/kernels.py:step_chunk": "the peridynamic state, one array each; "
+                                              + _ARRAYS,
+}
+
+
+def _is_kernel(node):
+    """Whether a function is compiled: decorated with ``kernel``, ``njit`` or ``jit``."""
+    for deco in node.decorator_list:
+        target = deco.func if isinstance(deco, ast.Call) else deco
+        name = target.attr if isinstance(target, ast.Attribute) else getattr(target, "id", "")
+        if name in ("kernel", "njit", "jit"):
+            return True
+    return False
+
+
+def oversized_functions(files, max_lines=MAX_FUNCTION_LINES, max_args=MAX_KERNEL_ARGS,
+                        root=ROOT):
+    """``({"path:qualname": lines}, {"path:qualname": arguments})``: the functions of
+    ``files`` longer than ``max_lines`` and the kernels with more than ``max_args``
+    arguments."""
+    long, many = {}, {}
+    for path in files.values():
+        rel = path.relative_to(root).as_posix()
+        stack = [(node, "") for node in ast.parse(path.read_text()).body]
+        while stack:
+            node, prefix = stack.pop()
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.ClassDef)):
+                name = prefix + node.name
+                stack.extend((child, name + ".") for child in node.body)
+                if isinstance(node, ast.ClassDef):
+                    continue
+                lines = node.end_lineno - node.lineno + 1
+                if lines > max_lines:
+                    long[f"{rel}:{name}"] = lines
+                n_args = len(node.args.posonlyargs) + len(node.args.args)
+                if _is_kernel(node) and n_args > max_args:
+                    many[f"{rel}:{name}"] = n_args
+    return long, many
+
+
+def test_the_size_check_sees_long_functions_and_kernels(tmp_path):
+    body = "    x = 1\n" * 3
+    (tmp_path / "m.py").write_text(
+        "@kernel\ndef k(a, b, c):\n" + body + "def plain(a, b, c):\n" + body
+        + "class C:\n    def meth(self):\n" + "        x = 1\n" * 4)
+    files = {"m": tmp_path / "m.py"}
+    long, many = oversized_functions(files, max_lines=4, max_args=2, root=tmp_path)
+    assert long == {"m.py:C.meth": 5}
+    assert many == {"m.py:k": 3}  # only compiled kernels count arguments
+    assert oversized_functions(files, max_lines=5, max_args=3, root=tmp_path) == ({}, {})
+
+
+def test_no_function_over_100_lines_and_no_kernel_over_20_arguments():
+    long, many = oversized_functions(FILES)
+    unexplained = ({k: n for k, n in long.items() if k not in LONG_FUNCTIONS},
+                   {k: n for k, n in many.items() if k not in MANY_ARGUMENTS})
+    assert unexplained == ({}, {}), (
+        f"functions over {MAX_FUNCTION_LINES} lines, kernels over {MAX_KERNEL_ARGS} "
+        "arguments (split them, or list one with its reason in LONG_FUNCTIONS or "
+        f"MANY_ARGUMENTS): {unexplained}")
+    stale = sorted(set(LONG_FUNCTIONS) - set(long)) + sorted(set(MANY_ARGUMENTS) - set(many))
+    assert not stale, f"listed but no longer over the limits: {stale}"

@@ -155,6 +155,83 @@ def _into_world(dim, rot, b, x, y, z):
     return to_world(dim, rot, b, x, y, z)
 
 
+@kernel(inline=True, cache=False)
+def _load_warm(dim, rot, a, b, obx, oby, obz, warm, k, state):
+    """Reset both problems' ``state`` and load pair ``k``'s warm row into the problems
+    it did not mark cold; returns the row's flags (12, both cold, without a row)."""
+    flags = int(warm[k, 15]) if warm[k, 14] == 1.0 else 12
+    state[:, :] = 0.0
+    state[:, BOUND] = math.inf
+    for p in range(2):
+        st = state[p]
+        body, ox, oy, oz = (a, 0.0, 0.0, 0.0) if p == 0 else (b, obx, oby, obz)
+        if not (flags >> (p + 2)) & 1:
+            st[Z], st[Z + 1], st[Z + 2] = _into_world(
+                dim, rot, body, warm[k, 6 * p], warm[k, 6 * p + 1], warm[k, 6 * p + 2])
+            st[Z], st[Z + 1], st[Z + 2] = st[Z] + ox, st[Z + 1] + oy, st[Z + 2] + oz
+            st[U], st[U + 1], st[U + 2] = _into_world(
+                dim, rot, body, warm[k, 6 * p + 3], warm[k, 6 * p + 4], warm[k, 6 * p + 5])
+            st[RHO] = warm[k, 12 + p]
+            st[CREASE] = 1.0 if (flags >> p) & 1 else 0.0
+    return flags
+
+
+@kernel(inline=True, cache=False)
+def _deeper_side(fn, dim, ba, bb, state, all_ok, rot, normal, geo, pos, a, ex, ey, ez):
+    """The contact of the deeper problem: ``(overlap, normal, point)`` in the world
+    frame (the last iterates' depths when the solves did not both converge)."""
+    # n = -grad phi_B(x1) or grad phi_A(x2)
+    d1 = state[0, DEPTH] if state[0, DONE] == 1.0 else -math.inf
+    d2 = state[1, DEPTH] if state[1, DONE] == 1.0 else -math.inf
+    if not all_ok:  # report the last iterates
+        d1 = -_sdf(fn, dim, bb, state[0, Z], state[0, Z + 1], state[0, Z + 2], rot,
+                   normal, geo, np.int64(0))[0]
+        d2 = -_sdf(fn, dim, ba, state[1, Z], state[1, Z + 1], state[1, Z + 2], rot,
+                   normal, geo, np.int64(0))[0]
+    p = 0 if d1 >= d2 else 1
+    st = state[p]
+    sg = -1.0 if p == 0 else 1.0
+    ov = d1 if p == 0 else d2
+    # the gradient: gbar, the subgradient of f at the point that the optimality
+    # conditions single out (on a crease, the combination of the faces that C's normal
+    # cone balances: the common perpendicular of two edges, a face's own normal when
+    # it lies nearly flat on the other body's face)
+    gx, gy, gz = st[G], st[G + 1], st[G + 2]
+    gn = math.sqrt(gx * gx + gy * gy + gz * gz)
+    if gn > 0.0:
+        nx, ny, nz = sg * gx / gn, sg * gy / gn, sg * gz / gn
+    else:
+        nx, ny, nz = ex, ey, ez
+    # c = x1 - ov/2 n  or  x2 + ov/2 n, back to the world frame
+    cx = st[Z] + sg * 0.5 * ov * nx + pos[a, 0]
+    cy = st[Z + 1] + sg * 0.5 * ov * ny + pos[a, 1]
+    cz = st[Z + 2] + sg * 0.5 * ov * nz + pos[a, 2] if dim == 3 else 0.0
+    if dim == 2:
+        nz = 0.0
+    return ov, nx, ny, nz, cx, cy, cz
+
+
+@kernel(inline=True, cache=False)
+def _store_warm(dim, rot, a, b, obx, oby, obz, state, warm, k):
+    """Write pair ``k``'s warm row for its next call, in the bodies' frames (a problem
+    not needed this time starts cold next time)."""
+    warm[k, :] = 0.0
+    flags = 0
+    for p in range(2):
+        st = state[p]
+        if st[BUDGET] == 0.0:
+            flags |= 4 << p
+            continue
+        body, ox, oy, oz = (a, 0.0, 0.0, 0.0) if p == 0 else (b, obx, oby, obz)
+        warm[k, 6 * p], warm[k, 6 * p + 1], warm[k, 6 * p + 2] = _into_body(
+            dim, rot, body, st[Z] - ox, st[Z + 1] - oy, st[Z + 2] - oz)
+        warm[k, 6 * p + 3], warm[k, 6 * p + 4], warm[k, 6 * p + 5] = _into_body(
+            dim, rot, body, st[U], st[U + 1], st[U + 2])
+        warm[k, 12 + p] = st[RHO]
+    warm[k, 14] = 1.0
+    warm[k, 15] = flags + state[0, CREASE] + 2.0 * state[1, CREASE]
+
+
 @kernel(cache=False)
 def _admm(fn, dim, ka, sa, a, kb, sb, b, sx, sy, sz, pos, rot, normal, geo, warm, k,
           tol, max_iter):
@@ -197,21 +274,8 @@ def _admm(fn, dim, ka, sa, a, kb, sb, b, sx, sy, sz, pos, rot, normal, geo, warm
     # P1: C = A, f = phi_B (B's cuts are f's);  P2: C = B, f = phi_A. The two run in
     # turns, one iteration each, so that each LP polish knows the faces the other
     # problem's prox met. A warm start that fails is retried cold once.
-    flags = int(warm[k, 15]) if warm[k, 14] == 1.0 else 12
-    state[:, :] = 0.0
-    state[:, BOUND] = math.inf
+    flags = _load_warm(dim, rot, a, b, obx, oby, obz, warm, k, state)
     retried = np.int64(flags >> 2)  # bit p: problem p started cold
-    for p in range(2):
-        st = state[p]
-        body, ox, oy, oz = (a, 0.0, 0.0, 0.0) if p == 0 else (b, obx, oby, obz)
-        if not (flags >> (p + 2)) & 1:
-            st[Z], st[Z + 1], st[Z + 2] = _into_world(
-                dim, rot, body, warm[k, 6 * p], warm[k, 6 * p + 1], warm[k, 6 * p + 2])
-            st[Z], st[Z + 1], st[Z + 2] = st[Z] + ox, st[Z + 1] + oy, st[Z + 2] + oz
-            st[U], st[U + 1], st[U + 2] = _into_world(
-                dim, rot, body, warm[k, 6 * p + 3], warm[k, 6 * p + 4], warm[k, 6 * p + 5])
-            st[RHO] = warm[k, 12 + p]
-            st[CREASE] = 1.0 if (flags >> p) & 1 else 0.0
     while True:
         busy = False
         for p in range(2):
@@ -252,53 +316,12 @@ def _admm(fn, dim, ka, sa, a, kb, sb, b, sx, sy, sz, pos, rot, normal, geo, warm
             break
     all_ok = state[0, DONE] >= 1.0 and state[1, DONE] >= 1.0
 
-    # the deeper side gives the contact: n = -grad phi_B(x1) or grad phi_A(x2)
-    d1 = state[0, DEPTH] if state[0, DONE] == 1.0 else -math.inf
-    d2 = state[1, DEPTH] if state[1, DONE] == 1.0 else -math.inf
-    if not all_ok:  # report the last iterates
-        d1 = -_sdf(fn, dim, bb, state[0, Z], state[0, Z + 1], state[0, Z + 2], rot,
-                   normal, geo, np.int64(0))[0]
-        d2 = -_sdf(fn, dim, ba, state[1, Z], state[1, Z + 1], state[1, Z + 2], rot,
-                   normal, geo, np.int64(0))[0]
-    p = 0 if d1 >= d2 else 1
-    st = state[p]
-    sg = -1.0 if p == 0 else 1.0
-    ov = d1 if p == 0 else d2
-    # the gradient: gbar, the subgradient of f at the point that the optimality
-    # conditions single out (on a crease, the combination of the faces that C's normal
-    # cone balances: the common perpendicular of two edges, a face's own normal when
-    # it lies nearly flat on the other body's face)
-    gx, gy, gz = st[G], st[G + 1], st[G + 2]
-    gn = math.sqrt(gx * gx + gy * gy + gz * gz)
-    if gn > 0.0:
-        nx, ny, nz = sg * gx / gn, sg * gy / gn, sg * gz / gn
-    else:
-        nx, ny, nz = ex, ey, ez
-    # c = x1 - ov/2 n  or  x2 + ov/2 n, back to the world frame
-    cx = st[Z] + sg * 0.5 * ov * nx + pos[a, 0]
-    cy = st[Z + 1] + sg * 0.5 * ov * ny + pos[a, 1]
-    cz = st[Z + 2] + sg * 0.5 * ov * nz + pos[a, 2] if dim == 3 else 0.0
-    if dim == 2:
-        nz = 0.0
-
-    # the warm row for the next call, in the bodies' frames (a problem not needed
-    # this time starts cold next time)
-    warm[k, :] = 0.0
+    ov, nx, ny, nz, cx, cy, cz = _deeper_side(fn, dim, ba, bb, state, all_ok, rot, normal,
+                                              geo, pos, a, ex, ey, ez)
     if all_ok:
-        flags = 0
-        for p in range(2):
-            st = state[p]
-            if st[BUDGET] == 0.0:
-                flags |= 4 << p
-                continue
-            body, ox, oy, oz = (a, 0.0, 0.0, 0.0) if p == 0 else (b, obx, oby, obz)
-            warm[k, 6 * p], warm[k, 6 * p + 1], warm[k, 6 * p + 2] = _into_body(
-                dim, rot, body, st[Z] - ox, st[Z + 1] - oy, st[Z + 2] - oz)
-            warm[k, 6 * p + 3], warm[k, 6 * p + 4], warm[k, 6 * p + 5] = _into_body(
-                dim, rot, body, st[U], st[U + 1], st[U + 2])
-            warm[k, 12 + p] = st[RHO]
-        warm[k, 14] = 1.0
-        warm[k, 15] = flags + state[0, CREASE] + 2.0 * state[1, CREASE]
+        _store_warm(dim, rot, a, b, obx, oby, obz, state, warm, k)
+    else:
+        warm[k, :] = 0.0
     status = OK if all_ok else NOCONVERGE
     return status, ov, nx, ny, nz, cx, cy, cz, int(max(state[0, ITS], state[1, ITS]))
 

@@ -18,14 +18,38 @@ def cross3(ax, ay, az, bx, by, bz):
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx
 
 
+#: the pose of a body in its own frame: ``R = I``, ``p = 0``
+IDENTITY3 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
+
+
 @kernel(inline=True)
-def face_row3(g, sc, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz, faces):
+def turn3(pose, x, y, z):
+    """``R x`` for a pose ``(R row-major, p)``, a body placed at ``R x + p``."""
+    r00, r01, r02, r10, r11, r12, r20, r21, r22, _, _, _ = pose
+    return (r00 * x + r01 * y + r02 * z, r10 * x + r11 * y + r12 * z,
+            r20 * x + r21 * y + r22 * z)
+
+
+@kernel(inline=True)
+def place3(pose, x, y, z):
+    """``R x + p``: a point of the placed body in the outer frame."""
+    ax, ay, az = turn3(pose, x, y, z)
+    return ax + pose[9], ay + pose[10], az + pose[11]
+
+
+@kernel(inline=True)
+def unturn3(pose, x, y, z):
+    """``R^T x``: a direction of the outer frame in the placed body's."""
+    r00, r01, r02, r10, r11, r12, r20, r21, r22, _, _, _ = pose
+    return (r00 * x + r10 * y + r20 * z, r01 * x + r11 * y + r21 * z,
+            r02 * x + r12 * y + r22 * z)
+
+
+@kernel(inline=True)
+def face_row3(g, sc, pose, faces):
     """Face ``g`` of a body placed at ``R x + p`` (scale ``sc``): (normal, offset)."""
-    nx, ny, nz = faces[g, 0], faces[g, 1], faces[g, 2]
-    ax = r00 * nx + r01 * ny + r02 * nz
-    ay = r10 * nx + r11 * ny + r12 * nz
-    az = r20 * nx + r21 * ny + r22 * nz
-    return ax, ay, az, sc * faces[g, 3] + ax * px + ay * py + az * pz
+    ax, ay, az = turn3(pose, faces[g, 0], faces[g, 1], faces[g, 2])
+    return ax, ay, az, sc * faces[g, 3] + ax * pose[9] + ay * pose[10] + az * pose[11]
 
 
 @kernel(inline=True)

@@ -78,8 +78,9 @@ def _polytope2(sa, a, sb, b, sx, sy, pos, rot, geo):
         wy = sna * x2 + ca * y2 + pos[a, 1] + 0.5 * d2 * ny
     if s1 <= 0.0 and s2 <= 0.0:  # edges across edges, no corner inside
         return ov, nx, ny, 0.0, wx, wy, 0.0, i1 + i2
-    oc, ncx, ncy, cx, cy = _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x, s1y,
-                                     g1x, g1y, v1, s2, s2x, s2y, g2x, g2y, v2)
+    oc, ncx, ncy, cx, cy = _corners2(ca, sna, cb, snb, sx, sy, pos, a, b,
+                                     (s1, s1x, s1y, g1x, g1y, v1),
+                                     (s2, s2x, s2y, g2x, g2y, v2))
     # the corners' answer, unless the bodies overlap deeper than their deepest corner
     # (long bodies crossing, a corner past a thin body's middle): then the programme's,
     # blended in as the ratio of the two depths goes from 1 to DEEPER
@@ -120,11 +121,14 @@ def _along2(depth, gx, gy, px, py):
 
 
 @kernel
-def _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, s1, s1x, s1y, g1x, g1y, v1,
-              s2, s2x, s2y, g2x, g2y, v2):
-    """The contact from the corners inside: A's in B (depth ``v1``, sums in B's frame)
-    and B's in A. One side only: its term. Both: the gradient of the elastic energy of
-    the smooth maximum ``S`` of the two depths, as one force: ``(ov, nx, ny, cx, cy)``."""
+def _corners2(ca, sna, cb, snb, sx, sy, pos, a, b, corners1, corners2):
+    """The contact from the corners inside: A's in B (``corners1 = (s1, s1x, s1y, g1x,
+    g1y, v1)``, the sums of :func:`.simplex2._deepest2` in B's frame, depth ``v1``) and
+    B's in A (``corners2``). One side only: its term. Both: the gradient of the elastic
+    energy of the smooth maximum ``S`` of the two depths, as one force: ``(ov, nx, ny,
+    cx, cy)``."""
+    s1, s1x, s1y, g1x, g1y, v1 = corners1
+    s2, s2x, s2y, g2x, g2y, v2 = corners2
     p1x, p1y, n1x, n1y, p2x, p2y, n2x, n2y = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
     if s1 > 0.0:
         p1x, p1y, n1x, n1y = _corner_term2(s1, s1x, s1y, g1x, g1y, v1, cb, snb,

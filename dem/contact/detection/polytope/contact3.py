@@ -29,7 +29,7 @@ plane, towards the centroid of the bodies' intersection (:mod:`.patch3`).
 import math
 
 from ...._jit import kernel
-from .common import TIE, _matrix3
+from .common import TIE, _matrix3, place3, turn3
 from .patch3 import PATCH_FROM, PATCH_TO, overlap_centroid3
 from .sat import sat_contact3
 from .simplex3 import _deepest3, _separation3
@@ -46,13 +46,12 @@ def _polytope3(sa, a, sb, b, sx, sy, sz, pos, rot, geo):
     # the centroid of the bodies' intersection, as its extent against the overlap
     # grows
     scale = geo[1]
-    a00, a01, a02, a10, a11, a12, a20, a21, a22 = _matrix3(rot, a)
-    b00, b01, b02, b10, b11, b12, b20, b21, b22 = _matrix3(rot, b)
+    a_pose = _matrix3(rot, a) + (pos[a, 0] - cx, pos[a, 1] - cy, pos[a, 2] - cz)
+    b_pose = _matrix3(rot, b) + (pos[b, 0] + sx - cx, pos[b, 1] + sy - cy,
+                                 pos[b, 2] + sz - cz)
     vol, ex, ey, ez = overlap_centroid3(
-        sa, scale[sa], a00, a01, a02, a10, a11, a12, a20, a21, a22, pos[a, 0] - cx,
-        pos[a, 1] - cy, pos[a, 2] - cz, sb, scale[sb], b00, b01, b02, b10, b11, b12, b20,
-        b21, b22, pos[b, 0] + sx - cx, pos[b, 1] + sy - cy, pos[b, 2] + sz - cz, nx, ny,
-        nz, ov, geo)  # within ov / 2 of the point along n (twice that, for safety)
+        sa, scale[sa], a_pose, sb, scale[sb], b_pose, (nx, ny, nz), ov,
+        geo)  # within ov / 2 of the point along n (twice that, for safety)
     u = (math.sqrt(vol / (ov * ov * ov)) - PATCH_FROM) / (PATCH_TO - PATCH_FROM)
     if u <= 0.0:
         return ov, nx, ny, nz, cx, cy, cz, it
@@ -70,8 +69,9 @@ def _rules3(sa, a, sb, b, sx, sy, sz, pos, rot, geo):
     brad = geo[8]
     sca, scb = scale[sa], scale[sb]
     tol = TIE * max(sca * brad[sa], scb * brad[sb])
-    a00, a01, a02, a10, a11, a12, a20, a21, a22 = _matrix3(rot, a)
-    b00, b01, b02, b10, b11, b12, b20, b21, b22 = _matrix3(rot, b)
+    a_rot, b_rot = _matrix3(rot, a), _matrix3(rot, b)
+    a00, a01, a02, a10, a11, a12, a20, a21, a22 = a_rot
+    b00, b01, b02, b10, b11, b12, b20, b21, b22 = b_rot
     # A's frame in B's: R = Rb^T Ra, p = Rb^T (xa - xb - shift)
     r00 = b00 * a00 + b10 * a10 + b20 * a20
     r01 = b00 * a01 + b10 * a11 + b20 * a21
@@ -91,22 +91,18 @@ def _rules3(sa, a, sb, b, sx, sy, sz, pos, rot, geo):
     qx = -(r00 * px + r10 * py + r20 * pz)  # B's origin in A's frame: -R^T p
     qy = -(r01 * px + r11 * py + r21 * pz)
     qz = -(r02 * px + r12 * py + r22 * pz)
-    sep = max(_separation3(sb, scb, sa, sca, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                           px, py, pz, vstart, verts, fstart, faces),
-              _separation3(sa, sca, sb, scb, r00, r10, r20, r01, r11, r21, r02, r12, r22,
-                           qx, qy, qz, vstart, verts, fstart, faces))
+    a_in_b = (r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz)
+    b_in_a = (r00, r10, r20, r01, r11, r21, r02, r12, r22, qx, qy, qz)
+    sep = max(_separation3(sb, scb, sa, sca, a_in_b, vstart, verts, fstart, faces),
+              _separation3(sa, sca, sb, scb, b_in_a, vstart, verts, fstart, faces))
     if sep > 0.0:
         return -sep, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0
     (t1, x1, y1, z1, m1x, m1y, m1z, n1, i1, k10, k11, k12, k13, s1, s1x, s1y,
-     s1z) = _deepest3(
-        sb, scb, sa, sca, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz,
-        vstart, verts, fstart, faces, brad, tol)
+     s1z) = _deepest3(sb, scb, sa, sca, a_in_b, vstart, verts, fstart, faces, brad, tol)
     if t1 >= 0.0:
         return -t1, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, i1
     (t2, x2, y2, z2, m2x, m2y, m2z, n2, i2, k20, k21, k22, k23, s2, s2x, s2y,
-     s2z) = _deepest3(
-        sa, sca, sb, scb, r00, r10, r20, r01, r11, r21, r02, r12, r22, qx, qy, qz,
-        vstart, verts, fstart, faces, brad, tol)
+     s2z) = _deepest3(sa, sca, sb, scb, b_in_a, vstart, verts, fstart, faces, brad, tol)
     d1, d2 = -t1, -t2
     use1 = d1 > d2 + tol or (d1 >= d2 - tol and n1 >= n2)
     if (n1 if use1 else n2) == 0:  # not a vertex: the separating-axis test decides
@@ -115,29 +111,25 @@ def _rules3(sa, a, sb, b, sx, sy, sz, pos, rot, geo):
         ga1, ga2, fb1, fb2 = _crease_rows(k10, k11, k12, k13, nfb, fb0, fa0)
         fb3, fb4, ga3, ga4 = _crease_rows(k20, k21, k22, k23, nfa, fa0, fb0)
         kind, ov, mx, my, mz, cx, cy, cz = sat_contact3(
-            sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz,
-            qx, qy, qz, vstart, verts, fstart, faces, brad, ga1, ga2, fb1, fb2, ga3, ga4,
-            fb3, fb4)
+            sa, sca, sb, scb, a_in_b, b_in_a, vstart, verts, fstart, faces, brad,
+            (ga1, ga2, fb1, fb2), (ga3, ga4, fb3, fb4))
         if kind == 2:  # an edge on an edge
-            nx = b00 * mx + b01 * my + b02 * mz
-            ny = b10 * mx + b11 * my + b12 * mz
-            nz = b20 * mx + b21 * my + b22 * mz
-            wx = b00 * cx + b01 * cy + b02 * cz + pos[b, 0] + sx
-            wy = b10 * cx + b11 * cy + b12 * cz + pos[b, 1] + sy
-            wz = b20 * cx + b21 * cy + b22 * cz + pos[b, 2] + sz
-            return ov, nx, ny, nz, wx, wy, wz, i1 + i2
+            b_turn = b_rot + (0.0, 0.0, 0.0)
+            nx, ny, nz = turn3(b_turn, mx, my, mz)
+            wx, wy, wz = turn3(b_turn, cx, cy, cz)
+            return (ov, nx, ny, nz, wx + pos[b, 0] + sx, wy + pos[b, 1] + sy,
+                    wz + pos[b, 2] + sz, i1 + i2)
         use1 = kind == 0  # a vertex on a face: as below, from that face
         if use1:
             d1, x1, y1, z1, m1x, m1y, m1z = ov, cx, cy, cz, mx, my, mz
         else:
             d2, x2, y2, z2, m2x, m2y, m2z = ov, cx, cy, cz, mx, my, mz
     if use1:
-        return _vertex_term3(d1, m1x, m1y, m1z, x1, y1, z1, s1, s1x, s1y, s1z, b00, b01,
-                             b02, b10, b11, b12, b20, b21, b22, pos[b, 0] + sx,
-                             pos[b, 1] + sy, pos[b, 2] + sz, -1.0, i1 + i2)
-    return _vertex_term3(d2, m2x, m2y, m2z, x2, y2, z2, s2, s2x, s2y, s2z, a00, a01, a02,
-                         a10, a11, a12, a20, a21, a22, pos[a, 0], pos[a, 1], pos[a, 2], 1.0,
-                         i1 + i2)
+        return _vertex_term3(d1, (m1x, m1y, m1z), (x1, y1, z1), s1, (s1x, s1y, s1z),
+                             b_rot + (pos[b, 0] + sx, pos[b, 1] + sy, pos[b, 2] + sz),
+                             -1.0, i1 + i2)
+    return _vertex_term3(d2, (m2x, m2y, m2z), (x2, y2, z2), s2, (s2x, s2y, s2z),
+                         a_rot + (pos[a, 0], pos[a, 1], pos[a, 2]), 1.0, i1 + i2)
 
 
 @kernel(inline=True)
@@ -162,26 +154,22 @@ def _crease_rows(k0, k1, k2, k3, nfo, fo0, fi0):
 
 
 @kernel(inline=True)
-def _vertex_term3(d, mx, my, mz, x, y, z, sw, swx, swy, swz, q00, q01, q02, q10, q11,
-                  q12, q20, q21, q22, ox, oy, oz, sign, pivots):
-    """One body's vertices in the other (the outer, frame ``Q`` at ``o``), deepest
-    ``d`` at ``x`` where the outer normal is ``m``: the contact ``(d, n, point,
+def _vertex_term3(d, m, x, sw, swx, pose, sign, pivots):
+    """One body's vertices in the other (the outer, placed at ``pose``: ``Q y + o``),
+    deepest ``d`` at ``x`` where the outer normal is ``m``: the contact ``(d, n, point,
     pivots)`` in the world, ``n = sign Q m`` (from A into B).
 
     The point lies ``d / 2`` out of the deepest point's level along ``m``, over the
-    depth-weighted mean of the vertices inside (weights ``sw``, sums ``sw x``), so it
-    moves continuously as a face tilts through flat on a face; none inside (a face won
-    the separating-axis test with a vertex outside): over ``x``."""
-    mwx = q00 * mx + q01 * my + q02 * mz
-    mwy = q10 * mx + q11 * my + q12 * mz
-    mwz = q20 * mx + q21 * my + q22 * mz
-    wx = q00 * x + q01 * y + q02 * z + ox
-    wy = q10 * x + q11 * y + q12 * z + oy
-    wz = q20 * x + q21 * y + q22 * z + oz
+    depth-weighted mean of the vertices inside (weights ``sw``, sums ``swx = sw x``), so
+    it moves continuously as a face tilts through flat on a face; none inside (a face
+    won the separating-axis test with a vertex outside): over ``x``."""
+    mwx, mwy, mwz = turn3(pose, m[0], m[1], m[2])
+    wx, wy, wz = place3(pose, x[0], x[1], x[2])
     if sw > 0.0:
-        ex = (q00 * swx + q01 * swy + q02 * swz) / sw + ox - wx
-        ey = (q10 * swx + q11 * swy + q12 * swz) / sw + oy - wy
-        ez = (q20 * swx + q21 * swy + q22 * swz) / sw + oz - wz
+        ex, ey, ez = turn3(pose, swx[0], swx[1], swx[2])
+        ex = ex / sw + pose[9] - wx
+        ey = ey / sw + pose[10] - wy
+        ez = ez / sw + pose[11] - wz
         e = ex * mwx + ey * mwy + ez * mwz
         wx, wy, wz = wx + ex - e * mwx, wy + ey - e * mwy, wz + ez - e * mwz
     h = 0.5 * d

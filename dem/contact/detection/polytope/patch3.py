@@ -26,6 +26,7 @@ the contact's slab: from 1.1 to 3.0 µs per box pair (docs/performance.md, Figur
 import numpy as np
 
 from ...._jit import kernel
+from .common import place3, turn3
 
 #: 3D: the point moves to the intersection's centroid as ``sqrt(V / ov^3)`` goes from
 #: PATCH_FROM to PATCH_TO (a cube's corner in a face: about 1; faces on faces: hundreds)
@@ -34,25 +35,24 @@ PATCH_TO = 6.0
 
 
 @kernel
-def _clipped3(s_in, sc_in, q00, q01, q02, q10, q11, q12, q20, q21, q22, qx, qy, qz,
-              s_cl, sc_cl, u00, u01, u02, u10, u11, u12, u20, u21, u22, ux, uy, uz,
-              wx, wy, wz, slab, buf, placed, vstart, verts, fstart, faces, tstart, tris):
+def _clipped3(s_in, sc_in, q_pose, s_cl, sc_cl, u_pose, w, slab, buf, placed, vstart, verts,
+              fstart, faces, tstart, tris):
     """The part of polyhedron ``s_in``'s boundary inside polyhedron ``s_cl`` (placed
-    at ``Q x + q`` and ``U x + u``): its contribution ``(V, Mx, My, Mz)`` to the volume
-    of their intersection and to its first moment (divergence theorem: a fan of
-    tetrahedra from the origin over each triangle clipped by the other's faces,
-    Sutherland-Hodgman, in ``buf`` (2, m, 3), m >= 3 + faces of ``s_cl``; the
-    vertices placed in ``placed`` (n, 4), n >= vertices of ``s_in``). The
-    intersection lies in the slab ``|w . x| <= slab``: triangles wholly outside it are
-    skipped unclipped."""
+    at ``q_pose``, ``Q x + q``, and ``u_pose``, ``U x + u``): its contribution ``(V,
+    Mx, My, Mz)`` to the volume of their intersection and to its first moment
+    (divergence theorem: a fan of tetrahedra from the origin over each triangle clipped
+    by the other's faces, Sutherland-Hodgman, in ``buf`` (2, m, 3), m >= 3 + faces of
+    ``s_cl``; the vertices placed in ``placed`` (n, 4), n >= vertices of ``s_in``).
+    The intersection lies in the slab ``|w . x| <= slab``: triangles wholly outside it
+    are skipped unclipped."""
     vol, mx, my, mz = 0.0, 0.0, 0.0, 0.0
+    wx, wy, wz = w
+    ux, uy, uz = u_pose[9], u_pose[10], u_pose[11]
     v0 = vstart[s_in]
     f0, f1 = fstart[s_cl], fstart[s_cl + 1]
     for v in range(v0, vstart[s_in + 1]):  # placed once, with their slab coordinate
-        lx, ly, lz = sc_in * verts[v, 0], sc_in * verts[v, 1], sc_in * verts[v, 2]
-        x = q00 * lx + q01 * ly + q02 * lz + qx
-        y = q10 * lx + q11 * ly + q12 * lz + qy
-        z = q20 * lx + q21 * ly + q22 * lz + qz
+        x, y, z = place3(q_pose, sc_in * verts[v, 0], sc_in * verts[v, 1],
+                         sc_in * verts[v, 2])
         placed[v - v0, 0], placed[v - v0, 1], placed[v - v0, 2] = x, y, z
         placed[v - v0, 3] = wx * x + wy * y + wz * z
     for t in range(tstart[s_in], tstart[s_in + 1]):
@@ -66,9 +66,7 @@ def _clipped3(s_in, sc_in, q00, q01, q02, q10, q11, q12, q20, q21, q22, qx, qy, 
                                                         placed[i, 2])
         m, cur = 3, 0
         for f in range(f0, f1):
-            nx = u00 * faces[f, 0] + u01 * faces[f, 1] + u02 * faces[f, 2]
-            ny = u10 * faces[f, 0] + u11 * faces[f, 1] + u12 * faces[f, 2]
-            nz = u20 * faces[f, 0] + u21 * faces[f, 1] + u22 * faces[f, 2]
+            nx, ny, nz = turn3(u_pose, faces[f, 0], faces[f, 1], faces[f, 2])
             off = sc_cl * faces[f, 3] + nx * ux + ny * uy + nz * uz
             out = 0
             for k in range(m):
@@ -114,26 +112,21 @@ def _clipped3(s_in, sc_in, q00, q01, q02, q10, q11, q12, q20, q21, q22, qx, qy, 
 
 
 @kernel
-def overlap_centroid3(sa, sca, a00, a01, a02, a10, a11, a12, a20, a21, a22, pax, pay, paz,
-                      sb, scb, b00, b01, b02, b10, b11, b12, b20, b21, b22, pbx, pby, pbz,
-                      wx, wy, wz, slab, geo):
-    """Volume and centroid of the intersection of polyhedra A (at ``Ra x + pa``) and B
-    (at ``Rb x + pb``), placed about a point near it (round-off), which lies in the slab
-    ``|w . x| <= slab`` (``slab = inf``: anywhere): ``(V, cx, cy, cz)``, ``V = 0`` (and
-    ``c = 0``) when they do not overlap."""
+def overlap_centroid3(sa, sca, a_pose, sb, scb, b_pose, w, slab, geo):
+    """Volume and centroid of the intersection of polyhedra A (at ``a_pose``, ``Ra x +
+    pa``) and B (at ``b_pose``), placed about a point near it (round-off), which lies
+    in the slab ``|w . x| <= slab`` (``slab = inf``: anywhere): ``(V, cx, cy, cz)``,
+    ``V = 0`` (and ``c = 0``) when they do not overlap. A pose is ``(R row-major,
+    p)``."""
     vstart, verts, fstart, faces, tstart, tris = (geo[2], geo[3], geo[4], geo[5], geo[6],
                                                   geo[7])
     m = 3 + max(fstart[sa + 1] - fstart[sa], fstart[sb + 1] - fstart[sb])
     buf = np.empty((2, m, 3))
     placed = np.empty((max(vstart[sa + 1] - vstart[sa], vstart[sb + 1] - vstart[sb]), 4))
-    va, ma, mb, mc = _clipped3(sa, sca, a00, a01, a02, a10, a11, a12, a20, a21, a22, pax,
-                               pay, paz, sb, scb, b00, b01, b02, b10, b11, b12, b20, b21,
-                               b22, pbx, pby, pbz, wx, wy, wz, slab, buf, placed, vstart,
-                               verts, fstart, faces, tstart, tris)
-    vb, na, nb, nc = _clipped3(sb, scb, b00, b01, b02, b10, b11, b12, b20, b21, b22, pbx,
-                               pby, pbz, sa, sca, a00, a01, a02, a10, a11, a12, a20, a21,
-                               a22, pax, pay, paz, wx, wy, wz, slab, buf, placed, vstart,
-                               verts, fstart, faces, tstart, tris)
+    va, ma, mb, mc = _clipped3(sa, sca, a_pose, sb, scb, b_pose, w, slab, buf, placed,
+                               vstart, verts, fstart, faces, tstart, tris)
+    vb, na, nb, nc = _clipped3(sb, scb, b_pose, sa, sca, a_pose, w, slab, buf, placed,
+                               vstart, verts, fstart, faces, tstart, tris)
     vol = va + vb
     if not vol > 0.0:
         return 0.0, 0.0, 0.0, 0.0

@@ -46,15 +46,15 @@ integrator's O(dt) error where the piece changes. The walk is local: for overlap
 few per cent of the body size it finds the least overlap (tested against all edge
 pairs); deeper it may stop at a larger one, an upper bound of the depth.
 
-Everything is read in B's frame, A placed at ``R x + p`` (``R`` as nine scalars); faces
-are the shape table's rows ``n . x <= o`` (outward unit normals), scaled by the row's
-scale.
+Everything is read in B's frame, A placed at ``R x + p`` (its pose ``(R row-major,
+p)``, :mod:`.common`); faces are the shape table's rows ``n . x <= o`` (outward unit
+normals), scaled by the row's scale.
 """
 
 import math
 
 from ...._jit import kernel
-from .common import face_row3
+from .common import IDENTITY3, face_row3, place3, unturn3
 from .sat_edges import (_closest_params, _edge_axis3, _edge_ends3, _plane_line,
                         _vertex_edges3)
 
@@ -63,21 +63,19 @@ _MAX_WALK = 8
 
 
 @kernel
-def _face_axes3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                px, py, pz, vstart, verts, fstart, faces, bound):
+def _face_axes3(so, sco, si, sci, pose, vstart, verts, fstart, faces, bound):
     """The least overlap along the outer body's face normals (separating-axis test).
 
-    The inner body sits in the outer frame at ``R x + p``. Along face ``f`` the overlap
+    The inner body sits in the outer frame at ``pose``. Along face ``f`` the overlap
     is the depth of the inner body's lowest vertex below the face's plane. Returns
     ``(overlap, f, v)``: the least overlap below ``bound``, its face and that vertex
     (table rows), or ``(bound, -1, -1)``.
     """
+    px, py, pz = pose[9], pose[10], pose[11]
     best, fb, vb = bound, -1, -1
     for f in range(fstart[so], fstart[so + 1]):
         nx, ny, nz = faces[f, 0], faces[f, 1], faces[f, 2]
-        mx = r00 * nx + r10 * ny + r20 * nz  # R^T n: the normal in the inner frame
-        my = r01 * nx + r11 * ny + r21 * nz
-        mz = r02 * nx + r12 * ny + r22 * nz
+        mx, my, mz = unturn3(pose, nx, ny, nz)  # the normal in the inner frame
         off = sco * faces[f, 3] - nx * px - ny * py - nz * pz
         cut = (off - best) / sci  # a vertex below this level: no better than best
         lo, vl = math.inf, -1
@@ -94,116 +92,40 @@ def _face_axes3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22,
 
 
 @kernel
-def sat_contact3(sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                 px, py, pz, qx, qy, qz, vstart, verts, fstart, faces, brad,
-                 ga1, ga2, fb1, fb2, ga3, ga4, fb3, fb4):
+def sat_contact3(sa, sca, sb, scb, a_in_b, b_in_a, vstart, verts, fstart, faces, brad,
+                 crease1, crease2):
     """Contact by the separating-axis test where the deeper optimum is not a vertex.
 
-    A sits in B's frame at ``R x + p``, B in A's at ``R^T y + q``. Candidate axes:
-    every face normal of both bodies, the edge-edge axes of the creases the two
-    programmes ended on (A's faces ``ga1, ga2`` with B's ``fb1, fb2`` from P1, ``ga3,
-    ga4`` with ``fb3, fb4`` from P2; ``-1``: none) and those of the edge pairs met
-    walking from them (the module docstring). The least overlap wins. Returns ``(kind,
-    ov, nx, ny, nz, cx, cy, cz)``: kind 0, a face of B (its outward normal and A's
-    deepest vertex, in B's frame); 1, a face of A (its outward normal and B's deepest
-    vertex, in A's frame); 2, an edge on an edge (the normal from A to B and the
-    contact point, in B's frame).
+    A sits in B's frame at pose ``a_in_b`` (``R x + p``), B in A's at ``b_in_a``
+    (``R^T y + q``). Candidate axes: every face normal of both bodies, the edge-edge
+    axes of the creases the two programmes ended on (``crease1 = (ga1, ga2, fb1,
+    fb2)``, A's faces with B's, from P1; ``crease2`` from P2; ``-1``: none) and those
+    of the edge pairs met walking from them (the module docstring). The least overlap
+    wins. Returns ``(kind, ov, nx, ny, nz, cx, cy, cz)``: kind 0, a face of B (its
+    outward normal and A's deepest vertex, in B's frame); 1, a face of A (its outward
+    normal and B's deepest vertex, in A's frame); 2, an edge on an edge (the normal
+    from A to B and the contact point, in B's frame).
     """
     kind, ov, nx, ny, nz, cx, cy, cz = 2, math.inf, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    eps_a = 1e-9 * sca * brad[sa]
-    eps_b = 1e-9 * scb * brad[sb]
+    eps = (1e-9 * sca * brad[sa], 1e-9 * scb * brad[sb])
+    ga1, ga2, fb1, fb2 = crease1
     for pair in range(2):
-        ga, gb, fa, fb = (ga1, ga2, fb1, fb2) if pair == 0 else (ga3, ga4, fb3, fb4)
+        ga, gb, fa, fb = crease1 if pair == 0 else crease2
         if ga < 0 or (pair == 1 and ga1 >= 0 and min(ga, gb) == min(ga1, ga2)
                       and max(ga, gb) == max(ga1, ga2) and min(fa, fb) == min(fb1, fb2)
                       and max(fa, fb) == max(fb1, fb2)):
             continue  # none, or the same crease as P1's
-        cur, mx, my, mz, ex, ey, ez = _edge_axis3(
-            sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz,
-            vstart, verts, faces, ga, gb, fa, fb)
+        cur, mx, my, mz, ex, ey, ez = _edge_axis3(sa, sca, sb, scb, a_in_b, vstart, verts,
+                                                  faces, ga, gb, fa, fb)
         if cur < ov:
             kind, ov, nx, ny, nz, cx, cy, cz = 2, cur, mx, my, mz, ex, ey, ez
         # walk to the edge pairs at the ends of either edge while the overlap drops
         for _ in range(_MAX_WALK):
-            a1x, a1y, a1z, a1o = face_row3(ga, sca, r00, r01, r02, r10, r11, r12, r20,
-                                            r21, r22, px, py, pz, faces)
-            a2x, a2y, a2z, a2o = face_row3(gb, sca, r00, r01, r02, r10, r11, r12, r20,
-                                            r21, r22, px, py, pz, faces)
-            b1x, b1y, b1z = faces[fa, 0], faces[fa, 1], faces[fa, 2]
-            b2x, b2y, b2z = faces[fb, 0], faces[fb, 1], faces[fb, 2]
-            xax, xay, xaz, eax, eay, eaz = _plane_line(a1x, a1y, a1z, a1o,
-                                                       a2x, a2y, a2z, a2o)
-            xbx, xby, xbz, ebx, eby, ebz = _plane_line(b1x, b1y, b1z, scb * faces[fa, 3],
-                                                       b2x, b2y, b2z, scb * faces[fb, 3])
-            # the two edges in their own frames; a line that misses its body (two faces
-            # that do not meet) is no edge, and the other side cannot be paired with it
-            (tax, tay, taz, uax, uay, uaz, loa, hia, mloa,
-             mhia) = _edge_ends3(sa, sca, ga, gb, fstart, faces, eps_a)
-            (tbx, tby, tbz, ubx, uby, ubz, lob, hib, mlob,
-             mhib) = _edge_ends3(sb, scb, fa, fb, fstart, faces, eps_b)
-            step, side_to, ng, nh = cur, -1, -1, -1
-            # Across the side of the pair's facet (of the Minkowski difference) at an
-            # end v of one edge, the next facet is tilted by at most the other edge's
-            # dihedral angle theta; at a distance w from the foot of the origin it is
-            # no nearer than this one when w >= cur tan(theta / 2): skip that end.
-            s, t, aa, bb, den = _closest_params(xax, xay, xaz, eax, eay, eaz,
-                                                xbx, xby, xbz, ebx, eby, ebz)
-            reach_a, reach_b = math.inf, math.inf  # w below which an end is checked
-            tpa, tpb, sin_ab = 0.0, 0.0, 0.0
-            if den > 1e-12 * aa * bb:  # s, t: the closest points' parameters
-                dx = xax + s * eax - px
-                dy = xay + s * eay - py
-                dz = xaz + s * eaz - pz
-                tpa = ((r00 * dx + r10 * dy + r20 * dz - tax) * uax
-                       + (r01 * dx + r11 * dy + r21 * dz - tay) * uay
-                       + (r02 * dx + r12 * dy + r22 * dz - taz) * uaz)
-                tpb = ((xbx + t * ebx - tbx) * ubx + (xby + t * eby - tby) * uby
-                       + (xbz + t * ebz - tbz) * ubz)
-                sin_ab = math.sqrt(den / (aa * bb))
-                ca = min(max(a1x * a2x + a1y * a2y + a1z * a2z, -1.0), 1.0)
-                cb = min(max(b1x * b2x + b1y * b2y + b1z * b2z, -1.0), 1.0)
-                if ca > -1.0:
-                    reach_b = cur * math.sqrt((1.0 - ca) / (1.0 + ca))
-                if cb > -1.0:
-                    reach_a = cur * math.sqrt((1.0 - cb) / (1.0 + cb))
-            if loa <= hia + eps_a and lob <= hib + eps_b:
-                # B's edge in A's frame (R^T), to cross with the edges at A's ends
-                o1x = r00 * b1x + r10 * b1y + r20 * b1z
-                o1y = r01 * b1x + r11 * b1y + r21 * b1z
-                o1z = r02 * b1x + r12 * b1y + r22 * b1z
-                o2x = r00 * b2x + r10 * b2y + r20 * b2z
-                o2y = r01 * b2x + r11 * b2y + r21 * b2z
-                o2z = r02 * b2x + r12 * b2y + r22 * b2z
-                dx, dy, dz = xbx - px, xby - py, xbz - pz
-                xox = r00 * dx + r10 * dy + r20 * dz
-                xoy = r01 * dx + r11 * dy + r21 * dz
-                xoz = r02 * dx + r12 * dy + r22 * dz
-                eox = r00 * ebx + r10 * eby + r20 * ebz
-                eoy = r01 * ebx + r11 * eby + r21 * ebz
-                eoz = r02 * ebx + r12 * eby + r22 * ebz
-                for k in range(4):
-                    if k < 2:  # the edges at A's ends against B's edge
-                        t, m = (loa, mloa) if k == 0 else (hia, mhia)
-                        if (tpa - t if k == 0 else t - tpa) * sin_ab >= reach_a:
-                            continue
-                        ov3, mx, my, mz, ex, ey, ez, g, h = _vertex_edges3(
-                            sa, sca, tax + t * uax, tay + t * uay, taz + t * uaz, m, True,
-                            ga, gb, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                            px, py, pz, fstart, faces, eps_a, o1x, o1y, o1z, o2x, o2y,
-                            o2z, xox, xoy, xoz, eox, eoy, eoz)
-                    else:  # the edges at B's ends against A's edge
-                        t, m = (lob, mlob) if k == 2 else (hib, mhib)
-                        if (tpb - t if k == 2 else t - tpb) * sin_ab >= reach_b:
-                            continue
-                        ov3, mx, my, mz, ex, ey, ez, g, h = _vertex_edges3(
-                            sb, scb, tbx + t * ubx, tby + t * uby, tbz + t * ubz, m,
-                            False, fa, fb, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0,
-                            0.0, 0.0, 0.0, fstart, faces, eps_b, a1x, a1y, a1z, a2x,
-                            a2y, a2z, xax, xay, xaz, eax, eay, eaz)
-                    if ov3 < step:
-                        step, side_to, ng, nh = ov3, k // 2, g, h
-                    if ov3 < ov:
-                        kind, ov, nx, ny, nz, cx, cy, cz = 2, ov3, mx, my, mz, ex, ey, ez
+            step, side_to, ng, nh, best = _walk_step3(sa, sca, sb, scb, a_in_b, fstart,
+                                                      faces, eps, (ga, gb, fa, fb), cur)
+            if best[0] < ov:
+                kind = 2
+                ov, nx, ny, nz, cx, cy, cz = best
             if side_to < 0:
                 break
             cur = step
@@ -212,22 +134,95 @@ def sat_contact3(sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22,
             else:
                 fa, fb = ng, nh
     # the faces of B against A's vertices, then A's against B's (in A's frame)
-    ov2, f, v = _face_axes3(sb, scb, sa, sca, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                            px, py, pz, vstart, verts, fstart, faces, ov)
+    ov2, f, v = _face_axes3(sb, scb, sa, sca, a_in_b, vstart, verts, fstart, faces, ov)
     if f >= 0:
         kind, ov = 0, ov2
         nx, ny, nz = faces[f, 0], faces[f, 1], faces[f, 2]
-        lx, ly, lz = sca * verts[v, 0], sca * verts[v, 1], sca * verts[v, 2]
-        cx = r00 * lx + r01 * ly + r02 * lz + px
-        cy = r10 * lx + r11 * ly + r12 * lz + py
-        cz = r20 * lx + r21 * ly + r22 * lz + pz
-    ov2, f, v = _face_axes3(sa, sca, sb, scb, r00, r10, r20, r01, r11, r21, r02, r12, r22,
-                            qx, qy, qz, vstart, verts, fstart, faces, ov)
+        cx, cy, cz = place3(a_in_b, sca * verts[v, 0], sca * verts[v, 1], sca * verts[v, 2])
+    ov2, f, v = _face_axes3(sa, sca, sb, scb, b_in_a, vstart, verts, fstart, faces, ov)
     if f >= 0:
         kind, ov = 1, ov2
         nx, ny, nz = faces[f, 0], faces[f, 1], faces[f, 2]
-        lx, ly, lz = scb * verts[v, 0], scb * verts[v, 1], scb * verts[v, 2]
-        cx = r00 * lx + r10 * ly + r20 * lz + qx
-        cy = r01 * lx + r11 * ly + r21 * lz + qy
-        cz = r02 * lx + r12 * ly + r22 * lz + qz
+        cx, cy, cz = place3(b_in_a, scb * verts[v, 0], scb * verts[v, 1], scb * verts[v, 2])
     return kind, ov, nx, ny, nz, cx, cy, cz
+
+
+@kernel
+def _walk_step3(sa, sca, sb, scb, pose, fstart, faces, eps, crease, cur):
+    """One step of the walk from the edge pair ``crease = (ga, gb, fa, fb)`` (A's faces
+    ``ga``, ``gb``; B's ``fa``, ``fb``) of overlap ``cur``: the edge pairs at the ends
+    of either edge (A at ``pose`` in B's frame, ``eps`` the two bodies' tolerances).
+
+    Returns ``(step, side, g, h, best)``: the least overlap below ``cur`` and where it
+    leads (``side`` 0: A's edge becomes faces ``g``, ``h``; 1: B's; -1: none lower),
+    and ``best = (ov, nx, ny, nz, cx, cy, cz)``, the least overlap met (infinite if
+    none) with its axis and point in B's frame.
+    """
+    ga, gb, fa, fb = crease
+    eps_a, eps_b = eps
+    px, py, pz = pose[9], pose[10], pose[11]
+    a1x, a1y, a1z, a1o = face_row3(ga, sca, pose, faces)
+    a2x, a2y, a2z, a2o = face_row3(gb, sca, pose, faces)
+    b1x, b1y, b1z = faces[fa, 0], faces[fa, 1], faces[fa, 2]
+    b2x, b2y, b2z = faces[fb, 0], faces[fb, 1], faces[fb, 2]
+    xax, xay, xaz, eax, eay, eaz = _plane_line(a1x, a1y, a1z, a1o, a2x, a2y, a2z, a2o)
+    xbx, xby, xbz, ebx, eby, ebz = _plane_line(b1x, b1y, b1z, scb * faces[fa, 3],
+                                               b2x, b2y, b2z, scb * faces[fb, 3])
+    # the two edges in their own frames; a line that misses its body (two faces that
+    # do not meet) is no edge, and the other side cannot be paired with it
+    (tax, tay, taz, uax, uay, uaz, loa, hia, mloa,
+     mhia) = _edge_ends3(sa, sca, ga, gb, fstart, faces, eps_a)
+    (tbx, tby, tbz, ubx, uby, ubz, lob, hib, mlob,
+     mhib) = _edge_ends3(sb, scb, fa, fb, fstart, faces, eps_b)
+    step, side_to, ng, nh = cur, -1, -1, -1
+    best = (math.inf, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    if not (loa <= hia + eps_a and lob <= hib + eps_b):
+        return step, side_to, ng, nh, best
+    # Across the side of the pair's facet (of the Minkowski difference) at an end v of
+    # one edge, the next facet is tilted by at most the other edge's dihedral angle
+    # theta; at a distance w from the foot of the origin it is no nearer than this one
+    # when w >= cur tan(theta / 2): skip that end.
+    s, t, aa, bb, den = _closest_params(xax, xay, xaz, eax, eay, eaz,
+                                        xbx, xby, xbz, ebx, eby, ebz)
+    reach_a, reach_b = math.inf, math.inf  # w below which an end is checked
+    tpa, tpb, sin_ab = 0.0, 0.0, 0.0
+    if den > 1e-12 * aa * bb:  # s, t: the closest points' parameters
+        qax, qay, qaz = unturn3(pose, xax + s * eax - px, xay + s * eay - py,
+                                xaz + s * eaz - pz)
+        tpa = (qax - tax) * uax + (qay - tay) * uay + (qaz - taz) * uaz
+        tpb = ((xbx + t * ebx - tbx) * ubx + (xby + t * eby - tby) * uby
+               + (xbz + t * ebz - tbz) * ubz)
+        sin_ab = math.sqrt(den / (aa * bb))
+        ca = min(max(a1x * a2x + a1y * a2y + a1z * a2z, -1.0), 1.0)
+        cb = min(max(b1x * b2x + b1y * b2y + b1z * b2z, -1.0), 1.0)
+        if ca > -1.0:
+            reach_b = cur * math.sqrt((1.0 - ca) / (1.0 + ca))
+        if cb > -1.0:
+            reach_a = cur * math.sqrt((1.0 - cb) / (1.0 + cb))
+    # B's edge in A's frame (R^T), to cross with the edges at A's ends
+    o1x, o1y, o1z = unturn3(pose, b1x, b1y, b1z)
+    o2x, o2y, o2z = unturn3(pose, b2x, b2y, b2z)
+    xox, xoy, xoz = unturn3(pose, xbx - px, xby - py, xbz - pz)
+    eox, eoy, eoz = unturn3(pose, ebx, eby, ebz)
+    for k in range(4):
+        if k < 2:  # the edges at A's ends against B's edge
+            t, m = (loa, mloa) if k == 0 else (hia, mhia)
+            if (tpa - t if k == 0 else t - tpa) * sin_ab >= reach_a:
+                continue
+            ov3, mx, my, mz, ex, ey, ez, g, h = _vertex_edges3(
+                sa, sca, tax + t * uax, tay + t * uay, taz + t * uaz, m, True, ga, gb,
+                pose, fstart, faces, eps_a,
+                (o1x, o1y, o1z, o2x, o2y, o2z, xox, xoy, xoz, eox, eoy, eoz))
+        else:  # the edges at B's ends against A's edge
+            t, m = (lob, mlob) if k == 2 else (hib, mhib)
+            if (tpb - t if k == 2 else t - tpb) * sin_ab >= reach_b:
+                continue
+            ov3, mx, my, mz, ex, ey, ez, g, h = _vertex_edges3(
+                sb, scb, tbx + t * ubx, tby + t * uby, tbz + t * ubz, m, False, fa, fb,
+                IDENTITY3, fstart, faces, eps_b,
+                (a1x, a1y, a1z, a2x, a2y, a2z, xax, xay, xaz, eax, eay, eaz))
+        if ov3 < step:
+            step, side_to, ng, nh = ov3, k // 2, g, h
+        if ov3 < best[0]:
+            best = (ov3, mx, my, mz, ex, ey, ez)
+    return step, side_to, ng, nh, best

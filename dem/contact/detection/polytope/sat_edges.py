@@ -3,14 +3,14 @@
 The overlap along the cross product of two edges (:func:`_edge_axis3`), an edge's ends
 on its body (:func:`_edge_ends3`), and the edge pairs met at an end
 (:func:`_vertex_edges3`). Everything is read in B's frame, A placed at ``R x + p``
-(``R`` as nine scalars); faces are the shape table's rows ``n . x <= o``, scaled by the
-row's scale.
+(its pose ``(R row-major, p)``, :mod:`.common`); faces are the shape table's rows
+``n . x <= o``, scaled by the row's scale.
 """
 
 import math
 
 from ...._jit import kernel
-from .common import cross3, face_row3
+from .common import cross3, face_row3, place3, turn3, unturn3
 
 
 @kernel(inline=True)
@@ -73,8 +73,7 @@ def _edge_normal(a1x, a1y, a1z, a2x, a2y, a2z, b1x, b1y, b1z, b2x, b2y, b2z):
 
 
 @kernel
-def _edge_axis3(sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                px, py, pz, vstart, verts, faces, ga, gb, fa, fb):
+def _edge_axis3(sa, sca, sb, scb, pose, vstart, verts, faces, ga, gb, fa, fb):
     """Overlap along the cross product of an edge of A and an edge of B (B's frame).
 
     A sits in B's frame at ``R x + p``; its edge is where its faces ``ga``, ``gb``
@@ -85,10 +84,8 @@ def _edge_axis3(sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22,
     cz)`` with ``c`` the midpoint of the lines' closest points, or an infinite overlap
     when the edges are parallel.
     """
-    a1x, a1y, a1z, a1o = face_row3(ga, sca, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                                    px, py, pz, faces)
-    a2x, a2y, a2z, a2o = face_row3(gb, sca, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                                    px, py, pz, faces)
+    a1x, a1y, a1z, a1o = face_row3(ga, sca, pose, faces)
+    a2x, a2y, a2z, a2o = face_row3(gb, sca, pose, faces)
     b1x, b1y, b1z, b1o = faces[fa, 0], faces[fa, 1], faces[fa, 2], scb * faces[fa, 3]
     b2x, b2y, b2z, b2o = faces[fb, 0], faces[fb, 1], faces[fb, 2], scb * faces[fb, 3]
     nx, ny, nz, _, _, _, _, _, _ = _edge_normal(a1x, a1y, a1z, a2x, a2y, a2z,
@@ -99,16 +96,14 @@ def _edge_axis3(sa, sca, sb, scb, r00, r01, r02, r10, r11, r12, r20, r21, r22,
     xbx, xby, xbz, ebx, eby, ebz = _plane_line(b1x, b1y, b1z, b1o, b2x, b2y, b2z, b2o)
     cx, cy, cz = _line_pair(xax, xay, xaz, eax, eay, eaz, xbx, xby, xbz, ebx, eby, ebz)
     # support of A along n (read in A's frame) and of B along -n
-    mx = r00 * nx + r10 * ny + r20 * nz
-    my = r01 * nx + r11 * ny + r21 * nz
-    mz = r02 * nx + r12 * ny + r22 * nz
+    mx, my, mz = unturn3(pose, nx, ny, nz)
     hi = -math.inf
     for v in range(vstart[sa], vstart[sa + 1]):
         hi = max(hi, mx * verts[v, 0] + my * verts[v, 1] + mz * verts[v, 2])
     lo = math.inf
     for v in range(vstart[sb], vstart[sb + 1]):
         lo = min(lo, nx * verts[v, 0] + ny * verts[v, 1] + nz * verts[v, 2])
-    ov = sca * hi + nx * px + ny * py + nz * pz - scb * lo
+    ov = sca * hi + nx * pose[9] + ny * pose[10] + nz * pose[11] - scb * lo
     return ov, nx, ny, nz, cx, cy, cz
 
 
@@ -190,16 +185,16 @@ def _pair_overlap(faces, i, j, is_a, vx, vy, vz, o1x, o1y, o1z, o2x, o2y, o2z,
 
 
 @kernel
-def _vertex_edges3(s, sc, vx, vy, vz, mask, is_a, skip1, skip2, r00, r01, r02, r10, r11,
-                   r12, r20, r21, r22, px, py, pz, fstart, faces, eps,
-                   o1x, o1y, o1z, o2x, o2y, o2z, xox, xoy, xoz, eox, eoy, eoz):
+def _vertex_edges3(s, sc, vx, vy, vz, mask, is_a, skip1, skip2, pose, fstart, faces, eps,
+                   other):
     """The least edge-edge overlap between the edges at vertex ``v`` of body ``s`` and
     one edge of the other body.
 
-    Everything is in the body's own frame, placed in B's at ``R x + p``; ``is_a`` tells
+    Everything is in the body's own frame, placed in B's at ``pose``; ``is_a`` tells
     whether ``s`` is A, ``mask`` which faces pass through ``v`` (as
-    :func:`_edge_ends3`; with more than 62 faces they are tested). The other edge has
-    face normals ``o1``, ``o2`` and line ``xo + t eo``. Every pair of faces through
+    :func:`_edge_ends3`; with more than 62 faces they are tested). The other edge,
+    ``other = (o1, o2, xo, eo)`` (twelve scalars), has face normals ``o1``, ``o2`` and
+    line ``xo + t eo``. Every pair of faces through
     ``v`` but ``(skip1, skip2)`` is tried (a pair that is no edge lies inside the
     vertex's normal cone, where ``v`` is still the extreme point: its overlap is an
     upper bound too); a pair counts when its arc of normals crosses the other edge's
@@ -207,6 +202,7 @@ def _vertex_edges3(s, sc, vx, vy, vz, mask, is_a, skip1, skip2, r00, r01, r02, r
     product. Returns ``(overlap, nx, ny, nz, cx, cy, cz, i, j)`` in B's frame with
     ``i, j`` the pair's faces, overlap infinite if no pair counts.
     """
+    o1x, o1y, o1z, o2x, o2y, o2z, xox, xoy, xoz, eox, eoy, eoz = other
     best, bi, bj = math.inf, -1, -1
     bnx, bny, bnz = 0.0, 0.0, 0.0
     eax, eay, eaz, ebx, eby, ebz = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
@@ -251,7 +247,6 @@ def _vertex_edges3(s, sc, vx, vy, vz, mask, is_a, skip1, skip2, r00, r01, r02, r
         cx, cy, cz = _line_pair(vx, vy, vz, eax, eay, eaz, xox, xoy, xoz, eox, eoy, eoz)
     else:
         cx, cy, cz = _line_pair(xox, xoy, xoz, eox, eoy, eoz, vx, vy, vz, ebx, eby, ebz)
-    return (best, r00 * bnx + r01 * bny + r02 * bnz, r10 * bnx + r11 * bny + r12 * bnz,
-            r20 * bnx + r21 * bny + r22 * bnz, r00 * cx + r01 * cy + r02 * cz + px,
-            r10 * cx + r11 * cy + r12 * cz + py, r20 * cx + r21 * cy + r22 * cz + pz,
-            bi, bj)
+    nx, ny, nz = turn3(pose, bnx, bny, bnz)
+    cx, cy, cz = place3(pose, cx, cy, cz)
+    return best, nx, ny, nz, cx, cy, cz, bi, bj

@@ -60,45 +60,8 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
     """
     fo0, nfo = fstart[so], fstart[so + 1] - fstart[so]
     fi0, nfi = fstart[si], fstart[si + 1] - fstart[si]
-    vi0, nvi = vstart[si], vstart[si + 1] - vstart[si]
-    # start: the inner corner where the outer face function is least; lo1 <= lo2 are
-    # the two least values over all vertices (for the ties below)
-    fmin, vb, fb = math.inf, 0, 0
-    lo1, lo2 = math.inf, math.inf
-    # the inner vertices inside, weighted by their depth w: sums of w, of w times their
-    # projection onto the outer face nearest, and of w times that face's normal
-    sw, swx, swy, sgx, sgy = 0.0, 0.0, 0.0, 0.0, 0.0
-    vout = -1  # an inner vertex outside (where the walk over the arcs starts)
-    inside = 0  # bit v: vertex v inside or on the outer boundary (v < 63)
-    for v in range(nvi):
-        lx, ly = sci * verts[vi0 + v, 0], sci * verts[vi0 + v, 1]
-        wx, wy = c * lx - s * ly + px, s * lx + c * ly + py
-        fv, fa = -math.inf, 0
-        for k in range(nfo):
-            val = faces[fo0 + k, 0] * wx + faces[fo0 + k, 1] * wy - sco * faces[fo0 + k, 3]
-            if val > fv:
-                fv, fa = val, k
-        if fv > 0.0 and vout < 0:
-            vout = v
-        if fv <= 0.0 and v < 63:
-            inside |= 1 << v
-        if fv < 0.0:
-            gx, gy = faces[fo0 + fa, 0], faces[fo0 + fa, 1]
-            sw -= fv
-            swx -= fv * (wx - fv * gx)
-            swy -= fv * (wy - fv * gy)
-            sgx -= fv * gx
-            sgy -= fv * gy
-        if fv < lo2:
-            lo1, lo2 = min(fv, lo1), max(fv, lo1)
-        e = v - 1 if v > 0 else nfi - 1  # the edges into and out of vertex v
-        if fv < fmin and abs(faces[fi0 + e, 0] * faces[fi0 + v, 1]
-                             - faces[fi0 + e, 1] * faces[fi0 + v, 0]) > 1e-9:
-            fmin, vb, fb = fv, v, fa  # a corner, not a straight angle
-    dv = -lo1
-    if vout >= 0 and (inside != 0 or nvi > 63):  # else wholly inside: nearest faces
-        sw, swx, swy, sgx, sgy, dv = _arcs2(so, sco, si, sci, c, s, px, py, vout, inside,
-                                            vstart, verts, fstart, faces)
+    fmin, vb, fb, lo1, lo2, sw, swx, swy, sgx, sgy, dv = _scan2(
+        so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces)
     k0 = nfo + (vb - 1 if vb > 0 else nfi - 1)
     k1 = nfo + vb
     k2 = fb
@@ -146,32 +109,8 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
             dx, dy, dt = -c1x * inv, -c1y * inv, -c1t * inv
         else:
             dx, dy, dt = -c2x * inv, -c2y * inv, -c2t * inv
-        # ratio test; inner rows are read in the inner frame
-        ux, uy = zx - px, zy - py
-        xin, yin = c * ux + s * uy, -s * ux + c * uy
-        dxin, dyin = c * dx + s * dy, -s * dx + c * dy
-        eps = _CROSS * (abs(dx) + abs(dy) + abs(dt))
-        rmin, kin, gbest = math.inf, -1, 0.0
-        for k in range(nfo + nfi):
-            if k == k0 or k == k1 or k == k2:
-                continue
-            if k < nfo:
-                f = fo0 + k
-                gd = faces[f, 0] * dx + faces[f, 1] * dy - dt
-                if gd <= eps:
-                    continue
-                sl = sco * faces[f, 3] - (faces[f, 0] * zx + faces[f, 1] * zy - zt)
-            else:
-                g = fi0 + k - nfo
-                gd = faces[g, 0] * dxin + faces[g, 1] * dyin
-                if gd <= eps:
-                    continue
-                sl = sci * faces[g, 3] - (faces[g, 0] * xin + faces[g, 1] * yin)
-            r = max(sl, 0.0) / gd
-            if r < rmin - tol:
-                rmin, kin, gbest = r, k, gd
-            elif r <= rmin + tol and not bland and gd > gbest:
-                rmin, kin, gbest = min(r, rmin), k, gd
+        kin, rmin = _entering2((k0, k1, k2), nfo, nfi, fo0, fi0, faces, sco, sci, c, s,
+                               px, py, (zx, zy, zt), (dx, dy, dt), bland, tol)
         if kin < 0:
             break  # unbounded in round-off: keep the vertex
         bland = rmin * (abs(dx) + abs(dy)) <= tol
@@ -185,31 +124,138 @@ def _deepest2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, tol)
     # ties: the average of the optimal inner vertices, the sum of the maximal faces
     count = 1 if lo1 <= zt + tol else 0
     if lo2 <= zt + tol:
-        count = 0
-        sx, sy = 0.0, 0.0
-        for v in range(vi0, vi0 + nvi):
-            lx, ly = sci * verts[v, 0], sci * verts[v, 1]
-            wx, wy = c * lx - s * ly + px, s * lx + c * ly + py
-            fv = -math.inf
-            for f in range(fo0, fo0 + nfo):
-                fv = max(fv, faces[f, 0] * wx + faces[f, 1] * wy - sco * faces[f, 3])
-            if fv <= zt + tol:
-                sx += wx
-                sy += wy
-                count += 1
+        count, sx, sy = _tied_vertices2(so, sco, si, sci, c, s, px, py, vstart, verts,
+                                        fstart, faces, zt + tol)
         if count > 0:
             zx, zy = sx / count, sy / count
+    nx, ny = _max_face_normal2(fo0, nfo, faces, sco, zx, zy, zt - tol)
+    return zt, zx, zy, nx, ny, count, it, sw, swx, swy, sgx, sgy, dv
+
+
+@kernel(inline=True)
+def _scan2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces):
+    """The first scan over the inner polygon's corners, for :func:`_deepest2`.
+
+    Returns ``(fmin, vb, fb, lo1, lo2, sw, swx, swy, sgx, sgy, dv)``: the least outer
+    face function over the corners, its corner and outer face, the two least values
+    ``lo1 <= lo2`` over all vertices (for the ties), and the inner corners inside as
+    :func:`_deepest2` returns them.
+    """
+    fo0, nfo = fstart[so], fstart[so + 1] - fstart[so]
+    fi0, nfi = fstart[si], fstart[si + 1] - fstart[si]
+    vi0, nvi = vstart[si], vstart[si + 1] - vstart[si]
+    # start: the inner corner where the outer face function is least
+    fmin, vb, fb = math.inf, 0, 0
+    lo1, lo2 = math.inf, math.inf
+    # the inner vertices inside, weighted by their depth w: sums of w, of w times their
+    # projection onto the outer face nearest, and of w times that face's normal
+    sw, swx, swy, sgx, sgy = 0.0, 0.0, 0.0, 0.0, 0.0
+    vout = -1  # an inner vertex outside (where the walk over the arcs starts)
+    inside = 0  # bit v: vertex v inside or on the outer boundary (v < 63)
+    for v in range(nvi):
+        lx, ly = sci * verts[vi0 + v, 0], sci * verts[vi0 + v, 1]
+        wx, wy = c * lx - s * ly + px, s * lx + c * ly + py
+        fv, fa = -math.inf, 0
+        for k in range(nfo):
+            val = faces[fo0 + k, 0] * wx + faces[fo0 + k, 1] * wy - sco * faces[fo0 + k, 3]
+            if val > fv:
+                fv, fa = val, k
+        if fv > 0.0 and vout < 0:
+            vout = v
+        if fv <= 0.0 and v < 63:
+            inside |= 1 << v
+        if fv < 0.0:
+            gx, gy = faces[fo0 + fa, 0], faces[fo0 + fa, 1]
+            sw -= fv
+            swx -= fv * (wx - fv * gx)
+            swy -= fv * (wy - fv * gy)
+            sgx -= fv * gx
+            sgy -= fv * gy
+        if fv < lo2:
+            lo1, lo2 = min(fv, lo1), max(fv, lo1)
+        e = v - 1 if v > 0 else nfi - 1  # the edges into and out of vertex v
+        if fv < fmin and abs(faces[fi0 + e, 0] * faces[fi0 + v, 1]
+                             - faces[fi0 + e, 1] * faces[fi0 + v, 0]) > 1e-9:
+            fmin, vb, fb = fv, v, fa  # a corner, not a straight angle
+    dv = -lo1
+    if vout >= 0 and (inside != 0 or nvi > 63):  # else wholly inside: nearest faces
+        sw, swx, swy, sgx, sgy, dv = _arcs2(so, sco, si, sci, c, s, px, py, vout, inside,
+                                            vstart, verts, fstart, faces)
+    return fmin, vb, fb, lo1, lo2, sw, swx, swy, sgx, sgy, dv
+
+
+@kernel(inline=True)
+def _entering2(basis, nfo, nfi, fo0, fi0, faces, sco, sci, c, s, px, py, z, dz, bland,
+               tol):
+    """The ratio test of :func:`_deepest2`: the row that enters the ``basis`` along the
+    edge ``dz`` from the vertex ``z`` (both ``(x, y, t)`` in the outer frame), and its
+    step; ``(-1, inf)`` if none bounds the edge. Inner rows are read in the inner
+    frame."""
+    k0, k1, k2 = basis
+    zx, zy, zt = z
+    dx, dy, dt = dz
+    ux, uy = zx - px, zy - py
+    xin, yin = c * ux + s * uy, -s * ux + c * uy
+    dxin, dyin = c * dx + s * dy, -s * dx + c * dy
+    eps = _CROSS * (abs(dx) + abs(dy) + abs(dt))
+    rmin, kin, gbest = math.inf, -1, 0.0
+    for k in range(nfo + nfi):
+        if k == k0 or k == k1 or k == k2:
+            continue
+        if k < nfo:
+            f = fo0 + k
+            gd = faces[f, 0] * dx + faces[f, 1] * dy - dt
+            if gd <= eps:
+                continue
+            sl = sco * faces[f, 3] - (faces[f, 0] * zx + faces[f, 1] * zy - zt)
+        else:
+            g = fi0 + k - nfo
+            gd = faces[g, 0] * dxin + faces[g, 1] * dyin
+            if gd <= eps:
+                continue
+            sl = sci * faces[g, 3] - (faces[g, 0] * xin + faces[g, 1] * yin)
+        r = max(sl, 0.0) / gd
+        if r < rmin - tol:
+            rmin, kin, gbest = r, k, gd
+        elif r <= rmin + tol and not bland and gd > gbest:
+            rmin, kin, gbest = min(r, rmin), k, gd
+    return kin, rmin
+
+
+@kernel(inline=True)
+def _tied_vertices2(so, sco, si, sci, c, s, px, py, vstart, verts, fstart, faces, bound):
+    """How many inner vertices have an outer face function ``<= bound``, and the sums
+    of their coordinates (outer frame)."""
+    count, sx, sy = 0, 0.0, 0.0
+    for v in range(vstart[si], vstart[si + 1]):
+        lx, ly = sci * verts[v, 0], sci * verts[v, 1]
+        wx, wy = c * lx - s * ly + px, s * lx + c * ly + py
+        fv = -math.inf
+        for f in range(fstart[so], fstart[so + 1]):
+            fv = max(fv, faces[f, 0] * wx + faces[f, 1] * wy - sco * faces[f, 3])
+        if fv <= bound:
+            sx += wx
+            sy += wy
+            count += 1
+    return count, sx, sy
+
+
+@kernel(inline=True)
+def _max_face_normal2(fo0, nfo, faces, sco, zx, zy, bound):
+    """The normalised sum of the normals of the faces whose function at ``(zx, zy)``
+    is ``>= bound``; where they cancel (opposite faces tied: the point on a medial
+    axis), the normal of the first face of largest value."""
     nx, ny = 0.0, 0.0
     for f in range(fo0, fo0 + nfo):
-        if faces[f, 0] * zx + faces[f, 1] * zy - sco * faces[f, 3] >= zt - tol:
+        if faces[f, 0] * zx + faces[f, 1] * zy - sco * faces[f, 3] >= bound:
             nx += faces[f, 0]
             ny += faces[f, 1]
     norm = math.sqrt(nx * nx + ny * ny)
-    if norm < 1e-6:  # opposite faces tied (the point on a medial axis): the first
+    if norm < 1e-6:
         best = -math.inf
         for f in range(fo0, fo0 + nfo):
             val = faces[f, 0] * zx + faces[f, 1] * zy - sco * faces[f, 3]
             if val > best:
                 best, nx, ny = val, faces[f, 0], faces[f, 1]
         norm = 1.0
-    return zt, zx, zy, nx / norm, ny / norm, count, it, sw, swx, swy, sgx, sgy, dv
+    return nx / norm, ny / norm

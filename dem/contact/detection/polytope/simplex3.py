@@ -9,22 +9,20 @@ four unknowns ``(x, y, z, t)``, started at a corner of the searched body
 import math
 
 from ...._jit import kernel
-from .common import _CROSS, _MAX_PIVOTS, _cross4, cross3, face_row3
+from .common import _CROSS, _MAX_PIVOTS, _cross4, cross3, face_row3, place3, unturn3
 
 
 @kernel
-def _separation3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-                 px, py, pz, vstart, verts, fstart, faces):
+def _separation3(so, sco, si, sci, pose, vstart, verts, fstart, faces):
     """Gap (> 0) between a face plane of the outer polyhedron and all inner vertices.
 
-    The inner body sits in the outer frame at ``R x + p``.
+    The inner body sits in the outer frame at ``R x + p``, ``pose = (R row-major, p)``.
     """
+    px, py, pz = pose[9], pose[10], pose[11]
     best = -math.inf
     for f in range(fstart[so], fstart[so + 1]):
         nx, ny, nz = faces[f, 0], faces[f, 1], faces[f, 2]
-        mx = r00 * nx + r10 * ny + r20 * nz  # R^T n: the normal in the inner frame
-        my = r01 * nx + r11 * ny + r21 * nz
-        mz = r02 * nx + r12 * ny + r22 * nz
+        mx, my, mz = unturn3(pose, nx, ny, nz)  # the normal in the inner frame
         off = sco * faces[f, 3] - nx * px - ny * py - nz * pz
         lo = math.inf
         for v in range(vstart[si], vstart[si + 1]):
@@ -39,14 +37,12 @@ def _separation3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22,
 
 
 @kernel(inline=True)
-def _row3(k, nfo, fo0, fi0, faces, sco, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22,
-          px, py, pz):
+def _row3(k, nfo, fo0, fi0, faces, sco, sci, pose):
     """Constraint row ``k`` (gx, gy, gz, gt, h) in the outer frame (outer faces first)."""
     if k < nfo:
         f = fo0 + k
         return faces[f, 0], faces[f, 1], faces[f, 2], -1.0, sco * faces[f, 3]
-    ax, ay, az, h = face_row3(fi0 + k - nfo, sci, r00, r01, r02, r10, r11, r12, r20, r21,
-                              r22, px, py, pz, faces)
+    ax, ay, az, h = face_row3(fi0 + k - nfo, sci, pose, faces)
     return ax, ay, az, 0.0, h
 
 
@@ -82,9 +78,9 @@ def _corner3(si, v, fstart, faces, verts, eps):
 
 
 @kernel
-def _deepest3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22, px, py, pz,
-              vstart, verts, fstart, faces, brad, tol):
-    """Minimise the outer polyhedron's face function over the inner one (outer frame).
+def _deepest3(so, sco, si, sci, pose, vstart, verts, fstart, faces, brad, tol):
+    """Minimise the outer polyhedron's face function over the inner one (outer frame;
+    the inner body at ``R x + p``, ``pose = (R row-major, p)``).
 
     Returns ``(t, x, y, z, nx, ny, nz, count, pivots, k0, k1, k2, k3, sw, swx, swy,
     swz)`` as :func:`.simplex2._deepest2`, with the rows of the final basis (outer
@@ -92,56 +88,14 @@ def _deepest3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22, px,
     """
     fo0, nfo = fstart[so], fstart[so + 1] - fstart[so]
     fi0, nfi = fstart[si], fstart[si + 1] - fstart[si]
-    vi0, nvi = vstart[si], vstart[si + 1] - vstart[si]
-    # start: the inner vertex where the outer face function is least
-    fmin, lo2, vb = math.inf, math.inf, vi0  # the two least values, the first's vertex
-    sw, swx, swy, swz = 0.0, 0.0, 0.0, 0.0  # the inner vertices inside, weighted by depth
-    for v in range(vi0, vi0 + nvi):
-        lx, ly, lz = sci * verts[v, 0], sci * verts[v, 1], sci * verts[v, 2]
-        wx = r00 * lx + r01 * ly + r02 * lz + px
-        wy = r10 * lx + r11 * ly + r12 * lz + py
-        wz = r20 * lx + r21 * ly + r22 * lz + pz
-        fv = -math.inf
-        for f in range(fo0, fo0 + nfo):
-            fv = max(fv, faces[f, 0] * wx + faces[f, 1] * wy + faces[f, 2] * wz
-                     - sco * faces[f, 3])
-        if fv < 0.0:
-            sw -= fv
-            swx -= fv * wx
-            swy -= fv * wy
-            swz -= fv * wz
-        if fv < fmin:
-            fmin, lo2, vb = fv, fmin, v
-        elif fv < lo2:
-            lo2 = fv
-    eps = 1e-9 * brad[si]
-    ga, gb, gc, dt3 = _corner3(si, vb, fstart, faces, verts, eps)
-    if dt3 < 1e-6:  # not a corner (a vertex on an edge or a face): take the first corner
-        for v in range(vi0, vi0 + nvi):
-            ga, gb, gc, dt3 = _corner3(si, v, fstart, faces, verts, eps)
-            if dt3 >= 1e-6:
-                vb = v
-                break
-    lx, ly, lz = sci * verts[vb, 0], sci * verts[vb, 1], sci * verts[vb, 2]
-    wx = r00 * lx + r01 * ly + r02 * lz + px
-    wy = r10 * lx + r11 * ly + r12 * lz + py
-    wz = r20 * lx + r21 * ly + r22 * lz + pz
-    fv, fb = -math.inf, 0
-    for k in range(nfo):
-        f = fo0 + k
-        val = faces[f, 0] * wx + faces[f, 1] * wy + faces[f, 2] * wz - sco * faces[f, 3]
-        if val > fv:
-            fv, fb = val, k
-    k0, k1, k2, k3 = nfo + ga - fi0, nfo + gb - fi0, nfo + gc - fi0, fb
-    g0x, g0y, g0z, g0t, h0 = _row3(k0, nfo, fo0, fi0, faces, sco, sci, r00, r01, r02, r10,
-                                   r11, r12, r20, r21, r22, px, py, pz)
-    g1x, g1y, g1z, g1t, h1 = _row3(k1, nfo, fo0, fi0, faces, sco, sci, r00, r01, r02, r10,
-                                   r11, r12, r20, r21, r22, px, py, pz)
-    g2x, g2y, g2z, g2t, h2 = _row3(k2, nfo, fo0, fi0, faces, sco, sci, r00, r01, r02, r10,
-                                   r11, r12, r20, r21, r22, px, py, pz)
-    g3x, g3y, g3z, g3t, h3 = _row3(k3, nfo, fo0, fi0, faces, sco, sci, r00, r01, r02, r10,
-                                   r11, r12, r20, r21, r22, px, py, pz)
-    zx, zy, zz, zt = wx, wy, wz, fv
+    fmin, lo2, vb, sw, swx, swy, swz = _scan3(so, sco, si, sci, pose, vstart, verts,
+                                              fstart, faces)
+    k0, k1, k2, k3, zx, zy, zz, zt = _first_basis3(so, sco, si, sci, pose, vb, vstart,
+                                                   verts, fstart, faces, brad)
+    g0x, g0y, g0z, g0t, h0 = _row3(k0, nfo, fo0, fi0, faces, sco, sci, pose)
+    g1x, g1y, g1z, g1t, h1 = _row3(k1, nfo, fo0, fi0, faces, sco, sci, pose)
+    g2x, g2y, g2z, g2t, h2 = _row3(k2, nfo, fo0, fi0, faces, sco, sci, pose)
+    g3x, g3y, g3z, g3t, h3 = _row3(k3, nfo, fo0, fi0, faces, sco, sci, pose)
     bland = False
     it = 0
     while True:
@@ -196,43 +150,12 @@ def _deepest3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22, px,
             dx, dy, dz, dt = -c2x / e2, -c2y / e2, -c2z / e2, -c2t / e2
         else:
             dx, dy, dz, dt = -c3x / e3, -c3y / e3, -c3z / e3, -c3t / e3
-        # ratio test; inner rows are read in the inner frame (R^T)
-        ux, uy, uz = zx - px, zy - py, zz - pz
-        xin = r00 * ux + r10 * uy + r20 * uz
-        yin = r01 * ux + r11 * uy + r21 * uz
-        zin = r02 * ux + r12 * uy + r22 * uz
-        dxin = r00 * dx + r10 * dy + r20 * dz
-        dyin = r01 * dx + r11 * dy + r21 * dz
-        dzin = r02 * dx + r12 * dy + r22 * dz
-        eps = _CROSS * (abs(dx) + abs(dy) + abs(dz) + abs(dt))
-        rmin, kin, gbest = math.inf, -1, 0.0
-        for k in range(nfo + nfi):
-            if k == k0 or k == k1 or k == k2 or k == k3:
-                continue
-            if k < nfo:
-                f = fo0 + k
-                gd = faces[f, 0] * dx + faces[f, 1] * dy + faces[f, 2] * dz - dt
-                if gd <= eps:
-                    continue
-                sl = sco * faces[f, 3] - (faces[f, 0] * zx + faces[f, 1] * zy
-                                          + faces[f, 2] * zz - zt)
-            else:
-                g = fi0 + k - nfo
-                gd = faces[g, 0] * dxin + faces[g, 1] * dyin + faces[g, 2] * dzin
-                if gd <= eps:
-                    continue
-                sl = sci * faces[g, 3] - (faces[g, 0] * xin + faces[g, 1] * yin
-                                          + faces[g, 2] * zin)
-            r = max(sl, 0.0) / gd
-            if r < rmin - tol:
-                rmin, kin, gbest = r, k, gd
-            elif r <= rmin + tol and not bland and gd > gbest:
-                rmin, kin, gbest = min(r, rmin), k, gd
+        kin, rmin = _entering3((k0, k1, k2, k3), nfo, nfi, fo0, fi0, faces, sco, sci, pose,
+                               (zx, zy, zz, zt), (dx, dy, dz, dt), bland, tol)
         if kin < 0:
             break  # unbounded in round-off: keep the vertex
         bland = rmin * (abs(dx) + abs(dy) + abs(dz)) <= tol
-        gx, gy, gz, gt, h = _row3(kin, nfo, fo0, fi0, faces, sco, sci, r00, r01, r02, r10,
-                                  r11, r12, r20, r21, r22, px, py, pz)
+        gx, gy, gz, gt, h = _row3(kin, nfo, fo0, fi0, faces, sco, sci, pose)
         if j == 0:
             k0, g0x, g0y, g0z, g0t, h0 = kin, gx, gy, gz, gt, h
         elif j == 1:
@@ -244,33 +167,136 @@ def _deepest3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22, px,
     # ties: the average of the optimal inner vertices, the sum of the maximal faces
     count = 1 if fmin <= zt + tol else 0
     if lo2 <= zt + tol:
-        count = 0
-        sx, sy, sz = 0.0, 0.0, 0.0
-        for v in range(vi0, vi0 + nvi):
-            lx, ly, lz = sci * verts[v, 0], sci * verts[v, 1], sci * verts[v, 2]
-            wx = r00 * lx + r01 * ly + r02 * lz + px
-            wy = r10 * lx + r11 * ly + r12 * lz + py
-            wz = r20 * lx + r21 * ly + r22 * lz + pz
-            fv = -math.inf
-            for f in range(fo0, fo0 + nfo):
-                fv = max(fv, faces[f, 0] * wx + faces[f, 1] * wy + faces[f, 2] * wz
-                         - sco * faces[f, 3])
-            if fv <= zt + tol:
-                sx += wx
-                sy += wy
-                sz += wz
-                count += 1
+        count, sx, sy, sz = _tied_vertices3(so, sco, si, sci, pose, vstart, verts, fstart,
+                                            faces, zt + tol)
         if count > 0:
             zx, zy, zz = sx / count, sy / count, sz / count
+    nx, ny, nz = _max_face_normal3(fo0, nfo, faces, sco, zx, zy, zz, zt - tol)
+    return (zt, zx, zy, zz, nx, ny, nz, count, it, k0, k1, k2, k3, sw, swx, swy, swz)
+
+
+@kernel(inline=True)
+def _scan3(so, sco, si, sci, pose, vstart, verts, fstart, faces):
+    """The first scan over the inner vertices, for :func:`_deepest3`: the least outer
+    face function over them, the second least, the first's vertex, and the vertices
+    inside weighted by their depth (``sw``, ``sw x``)."""
+    fo0, nfo = fstart[so], fstart[so + 1] - fstart[so]
+    fmin, lo2, vb = math.inf, math.inf, vstart[si]
+    sw, swx, swy, swz = 0.0, 0.0, 0.0, 0.0
+    for v in range(vstart[si], vstart[si + 1]):
+        wx, wy, wz = place3(pose, sci * verts[v, 0], sci * verts[v, 1], sci * verts[v, 2])
+        fv = -math.inf
+        for f in range(fo0, fo0 + nfo):
+            fv = max(fv, faces[f, 0] * wx + faces[f, 1] * wy + faces[f, 2] * wz
+                     - sco * faces[f, 3])
+        if fv < 0.0:
+            sw -= fv
+            swx -= fv * wx
+            swy -= fv * wy
+            swz -= fv * wz
+        if fv < fmin:
+            fmin, lo2, vb = fv, fmin, v
+        elif fv < lo2:
+            lo2 = fv
+    return fmin, lo2, vb, sw, swx, swy, swz
+
+
+@kernel(inline=True)
+def _first_basis3(so, sco, si, sci, pose, vb, vstart, verts, fstart, faces, brad):
+    """The simplex's start at inner vertex ``vb`` (or, if that is no corner, the first
+    corner): the rows ``k0 .. k3`` of three inner faces through it and the outer face
+    largest there, and the vertex ``(x, y, z, t)``."""
+    fo0, nfo = fstart[so], fstart[so + 1] - fstart[so]
+    fi0 = fstart[si]
+    eps = 1e-9 * brad[si]
+    ga, gb, gc, dt3 = _corner3(si, vb, fstart, faces, verts, eps)
+    if dt3 < 1e-6:  # not a corner (a vertex on an edge or a face): take the first corner
+        for v in range(vstart[si], vstart[si + 1]):
+            ga, gb, gc, dt3 = _corner3(si, v, fstart, faces, verts, eps)
+            if dt3 >= 1e-6:
+                vb = v
+                break
+    wx, wy, wz = place3(pose, sci * verts[vb, 0], sci * verts[vb, 1], sci * verts[vb, 2])
+    fv, fb = -math.inf, 0
+    for k in range(nfo):
+        f = fo0 + k
+        val = faces[f, 0] * wx + faces[f, 1] * wy + faces[f, 2] * wz - sco * faces[f, 3]
+        if val > fv:
+            fv, fb = val, k
+    return nfo + ga - fi0, nfo + gb - fi0, nfo + gc - fi0, fb, wx, wy, wz, fv
+
+
+@kernel(inline=True)
+def _entering3(basis, nfo, nfi, fo0, fi0, faces, sco, sci, pose, z, dz, bland, tol):
+    """The ratio test of :func:`_deepest3`: the row that enters the ``basis`` along the
+    edge ``dz`` from the vertex ``z`` (both ``(x, y, z, t)`` in the outer frame), and
+    its step; ``(-1, inf)`` if none bounds the edge. Inner rows are read in the inner
+    frame (``R^T``)."""
+    k0, k1, k2, k3 = basis
+    zx, zy, zz, zt = z
+    dx, dy, dz_, dt = dz
+    xin, yin, zin = unturn3(pose, zx - pose[9], zy - pose[10], zz - pose[11])
+    dxin, dyin, dzin = unturn3(pose, dx, dy, dz_)
+    eps = _CROSS * (abs(dx) + abs(dy) + abs(dz_) + abs(dt))
+    rmin, kin, gbest = math.inf, -1, 0.0
+    for k in range(nfo + nfi):
+        if k == k0 or k == k1 or k == k2 or k == k3:
+            continue
+        if k < nfo:
+            f = fo0 + k
+            gd = faces[f, 0] * dx + faces[f, 1] * dy + faces[f, 2] * dz_ - dt
+            if gd <= eps:
+                continue
+            sl = sco * faces[f, 3] - (faces[f, 0] * zx + faces[f, 1] * zy
+                                      + faces[f, 2] * zz - zt)
+        else:
+            g = fi0 + k - nfo
+            gd = faces[g, 0] * dxin + faces[g, 1] * dyin + faces[g, 2] * dzin
+            if gd <= eps:
+                continue
+            sl = sci * faces[g, 3] - (faces[g, 0] * xin + faces[g, 1] * yin
+                                      + faces[g, 2] * zin)
+        r = max(sl, 0.0) / gd
+        if r < rmin - tol:
+            rmin, kin, gbest = r, k, gd
+        elif r <= rmin + tol and not bland and gd > gbest:
+            rmin, kin, gbest = min(r, rmin), k, gd
+    return kin, rmin
+
+
+@kernel(inline=True)
+def _tied_vertices3(so, sco, si, sci, pose, vstart, verts, fstart, faces, bound):
+    """How many inner vertices have an outer face function ``<= bound``, and the sums
+    of their coordinates (outer frame)."""
+    count, sx, sy, sz = 0, 0.0, 0.0, 0.0
+    for v in range(vstart[si], vstart[si + 1]):
+        wx, wy, wz = place3(pose, sci * verts[v, 0], sci * verts[v, 1], sci * verts[v, 2])
+        fv = -math.inf
+        for f in range(fstart[so], fstart[so + 1]):
+            fv = max(fv, faces[f, 0] * wx + faces[f, 1] * wy + faces[f, 2] * wz
+                     - sco * faces[f, 3])
+        if fv <= bound:
+            sx += wx
+            sy += wy
+            sz += wz
+            count += 1
+    return count, sx, sy, sz
+
+
+@kernel(inline=True)
+def _max_face_normal3(fo0, nfo, faces, sco, zx, zy, zz, bound):
+    """The normalised sum of the normals of the faces whose function at the point is
+    ``>= bound``; where they cancel (opposite faces tied: the point on a medial axis),
+    the normal of the first face of largest value."""
     nx, ny, nz = 0.0, 0.0, 0.0
     for f in range(fo0, fo0 + nfo):
         if (faces[f, 0] * zx + faces[f, 1] * zy + faces[f, 2] * zz - sco * faces[f, 3]
-                >= zt - tol):
+                >= bound):
             nx += faces[f, 0]
             ny += faces[f, 1]
             nz += faces[f, 2]
     norm = math.sqrt(nx * nx + ny * ny + nz * nz)
-    if norm < 1e-6:  # opposite faces tied (the point on a medial axis): the first
+    if norm < 1e-6:
         best = -math.inf
         for f in range(fo0, fo0 + nfo):
             val = (faces[f, 0] * zx + faces[f, 1] * zy + faces[f, 2] * zz
@@ -278,5 +304,4 @@ def _deepest3(so, sco, si, sci, r00, r01, r02, r10, r11, r12, r20, r21, r22, px,
             if val > best:
                 best, nx, ny, nz = val, faces[f, 0], faces[f, 1], faces[f, 2]
         norm = 1.0
-    return (zt, zx, zy, zz, nx / norm, ny / norm, nz / norm, count, it,
-            k0, k1, k2, k3, sw, swx, swy, swz)
+    return nx / norm, ny / norm, nz / norm

@@ -350,7 +350,8 @@ check_every, threads
 
         With ``friction`` the consolidation first runs at that particle friction
         coefficient (lower than the law's for a denser packing), then the law's
-        friction is restored for the final relaxation at the same pressure.
+        friction is restored for the final relaxation at the same pressure. It is
+        restored also when the first stage raises.
         """
         if not (math.isfinite(p0) and p0 > 0.0):
             raise ValueError(f"p0 must be positive and finite, got {p0}")
@@ -363,8 +364,10 @@ check_every, threads
         try:
             if friction is not None:
                 self.set_friction(friction)
-                self._drive(zero, target, full, progress)
-                self.set_friction(working)
+                try:
+                    self._drive(zero, target, full, progress)
+                finally:
+                    self.set_friction(working)
             return self._drive(zero, target, full, progress)
         finally:
             self.max_step_strain = saved

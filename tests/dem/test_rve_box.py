@@ -150,6 +150,17 @@ def test_relaxation_that_cannot_finish_says_so(box):
     assert np.all(box.bodies.vel[box.walls.ravel()] == 0.0)  # the walls were stopped
 
 
+def test_a_consolidation_that_fails_restores_the_law_s_friction():
+    """A frictionless first stage capped at 100 steps raises, and the law's friction
+    (0.5) is back on the packing, as after a stage that settles."""
+    lo, hi, pos = rve_box.box_cloud(2, np.full(20, 1e-3), 0.4, seed=1)
+    bodies = dem.Bodies.spheres(pos, radius=1e-3, density=2650.0)
+    packing = rve_box.BoxRVE(bodies, LAW, lo, hi, damping=0.5, max_relax_steps=100)
+    with pytest.raises(rve.RelaxationError, match="did not relax within 100 steps"):
+        packing.consolidate(P0, friction=0.0)
+    assert packing.law.mu == 0.5
+
+
 @pytest.mark.slow  # from a cold numba cache: compiles the periodic cell's loop
 def test_box_and_periodic_packings_respond_alike(box):
     """The same grains at the same pressure, one periodic and one between walls, under

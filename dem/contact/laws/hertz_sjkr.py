@@ -12,7 +12,9 @@ rebounds with its approach speed, and a body at rest in contact settles where th
 force balances it, ``delta* = 9 pi^2 k^2 R* / (4 E*^2)``. Friction is capped by the
 Hertz part of the normal force alone (``mu max(f_n, 0)``, as the law without
 cohesion); rolling resistance scales with the Hertz stiffness. The attraction acts only
-in contact: bodies that touch nowhere do not attract (no pull-off hysteresis).
+in contact: bodies that touch nowhere do not attract (no pull-off hysteresis). In 2D,
+disks take these sphere formulas unchanged, the force read per unit thickness
+(docs/theory.md, Hertz laws in 2D).
 """
 
 import math

@@ -13,6 +13,19 @@ BLEND = 0.25
 
 
 @kernel(inline=True)
+def better_ratio(r, gd, k, rmin, kin, gbest, bland, tol):
+    """The simplex ratio test's choice between the best row so far ``(rmin, kin,
+    gbest)`` and row ``k`` of step ``r`` and slope ``gd``: the smaller step, and among
+    steps equal to ``tol`` the steeper row (Harris), unless Bland's rule is on (the
+    first row kept). Returns the new ``(rmin, kin, gbest)``."""
+    if r < rmin - tol:
+        return r, k, gd
+    if r <= rmin + tol and not bland and gd > gbest:
+        return min(r, rmin), k, gd
+    return rmin, kin, gbest
+
+
+@kernel(inline=True)
 def cross3(ax, ay, az, bx, by, bz):
     """The cross product ``a x b``."""
     return ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx

@@ -10,7 +10,7 @@ import math
 
 from ...._jit import kernel
 from .arcs2 import _arcs2
-from .common import _CROSS, _MAX_PIVOTS
+from .common import _CROSS, _MAX_PIVOTS, better_ratio
 
 
 @kernel
@@ -214,11 +214,8 @@ def _entering2(basis, nfo, nfi, fo0, fi0, faces, sco, sci, c, s, px, py, z, dz, 
             if gd <= eps:
                 continue
             sl = sci * faces[g, 3] - (faces[g, 0] * xin + faces[g, 1] * yin)
-        r = max(sl, 0.0) / gd
-        if r < rmin - tol:
-            rmin, kin, gbest = r, k, gd
-        elif r <= rmin + tol and not bland and gd > gbest:
-            rmin, kin, gbest = min(r, rmin), k, gd
+        rmin, kin, gbest = better_ratio(max(sl, 0.0) / gd, gd, k, rmin, kin, gbest, bland,
+                                        tol)
     return kin, rmin
 
 

@@ -9,7 +9,8 @@ four unknowns ``(x, y, z, t)``, started at a corner of the searched body
 import math
 
 from ...._jit import kernel
-from .common import _CROSS, _MAX_PIVOTS, _cross4, cross3, face_row3, place3, unturn3
+from .common import (_CROSS, _MAX_PIVOTS, _cross4, better_ratio, cross3, face_row3,
+                     place3, unturn3)
 
 
 @kernel
@@ -256,11 +257,8 @@ def _entering3(basis, nfo, nfi, fo0, fi0, faces, sco, sci, pose, z, dz, bland, t
                 continue
             sl = sci * faces[g, 3] - (faces[g, 0] * xin + faces[g, 1] * yin
                                       + faces[g, 2] * zin)
-        r = max(sl, 0.0) / gd
-        if r < rmin - tol:
-            rmin, kin, gbest = r, k, gd
-        elif r <= rmin + tol and not bland and gd > gbest:
-            rmin, kin, gbest = min(r, rmin), k, gd
+        rmin, kin, gbest = better_ratio(max(sl, 0.0) / gd, gd, k, rmin, kin, gbest, bland,
+                                        tol)
     return kin, rmin
 
 

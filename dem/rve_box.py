@@ -53,7 +53,7 @@ from .contact.model import ContactModel
 from .observers import contact_summary
 from .packings import cloud_lengths, particle_radii, random_addition, solid_volume
 from .rve import RelaxationError
-from .rve_settings import check_settings, scale_masses, store_settings
+from .rve_settings import check_settings, scale_masses, store_settings, warn_contact_scale
 from .shapes import Shape
 from .simulation import Simulation
 from .state import Bodies
@@ -506,6 +506,7 @@ def generate_box(dim, n, radius, law, p0, density=2650.0, fractions=None, seed=0
     :class:`BoxRVE`. Reproducible: a function of the seed and the arguments.
     """
     radii = particle_radii(n, radius, fractions, seed)
+    warn_contact_scale(law, p0, float(np.mean(radii)), dim)
     phi = solid_fraction or (0.4 if dim == 2 else 0.25)
     lo, hi, pos = box_cloud(dim, radii, phi, seed, aspect)
     bodies = Bodies.spheres(pos, radius=radii, density=density)

@@ -183,3 +183,13 @@ def test_box_and_periodic_packings_respond_alike(box):
     assert 1.0 / 3.0 < ds_box / ds_cell < 3.0
     assert 1.0 / 3.0 < c_box / c_cell < 3.0  # contact tangents of the same order
     assert wx_box > 1.0 and wx_cell > 1.0
+
+
+def test_a_box_packing_of_too_soft_contacts_is_warned_of(caplog):
+    """generate_box judges the law against p0 before consolidating, as rve.generate
+    does (kn / p0 = 1e-4 here; the 10-step cap then stops it)."""
+    law = dem.LinearSpring(kn=10.0, kt=5.0, mu=0.5)
+    with caplog.at_level("WARNING", logger="dem.rve"):
+        with pytest.raises(rve.RelaxationError):
+            rve_box.generate_box(2, 20, 1e-3, law, P0, seed=1, max_relax_steps=10)
+    assert "overlaps will be large (soft contacts)" in caplog.text

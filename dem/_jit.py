@@ -93,7 +93,10 @@ def kernel(fn=None, *, parallel=False, inline=False, cache=True):
 
     ``inline=True`` inlines the function into its callers at numba's IR level: for the
     small per-contact kernels (laws) called from hot loops, where a real call would pass
-    every array as a dozen scalar arguments.
+    every array as a dozen scalar arguments. Such a kernel may read from a state bundle
+    (a named tuple of arrays) but must write only into arrays it takes as arguments:
+    inlined into a ``prange`` loop, a write through ``bundle.field[...]`` is dropped by
+    numba without an error (``tests/test_architecture.py``, ``bundle_writes``).
 
     ``cache=False`` keeps the function off the disk cache even where ``DEM_JIT_CACHE``
     allows it: for helpers that are only ever compiled into a cached caller (the ADMM

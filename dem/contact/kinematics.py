@@ -250,20 +250,24 @@ def _drift_body(b, dim, deform, dt, half, pos, vel, rot, ang_vel, force, torque,
 
 
 @kernel(inline=True)
-def body_force(b, dim, fx, fy, fz, tx, ty, tz, gravity, damping, mass, is_fixed, vel,
-               ang_vel, force, torque, status_out):
-    """Add gravity and local damping to body b's contact force and torque and store them.
+def body_force(b, dim, fx, fy, fz, tx, ty, tz, gravity, damping, body, force, torque,
+               status_out):
+    """Add gravity and local damping to body b's contact force and torque and store them
+    in ``force`` and ``torque`` (reading the masses, fixed flags and velocities from
+    ``body``, :class:`~dem.state.BodyArrays`).
 
     A fixed body keeps the bare contact force. Flags a non-finite result. Returns the
     stored ``(fx, fy, fz, tx, ty, tz)``.
     """
-    if not is_fixed[b]:
-        mb = mass[b]
+    if not body.is_fixed[b]:
+        mb = body.mass[b]
         fx += mb * gravity[0]
         fy += mb * gravity[1]
         if dim == 3:
             fz += mb * gravity[2]
         if damping > 0.0:  # Cundall local damping: oppose the velocity's sign
+            vel = body.vel
+            ang_vel = body.ang_vel
             fx -= damping * abs(fx) * np.sign(vel[b, 0])
             fy -= damping * abs(fy) * np.sign(vel[b, 1])
             tx -= damping * abs(tx) * np.sign(ang_vel[b, 0])
@@ -286,13 +290,15 @@ def body_force(b, dim, fx, fy, fz, tx, ty, tz, gravity, damping, mass, is_fixed,
 
 
 @kernel(inline=True)
-def _finish_body(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, mass,
-                 inv_mass, inv_inertia, is_fixed, vel, ang_vel, force, torque, status_out):
-    """:func:`body_force`, then the second half kick (spheres: isotropic inertia)."""
+def _finish_body(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, body, vel,
+                 ang_vel, force, torque, status_out):
+    """:func:`body_force`, then the second half kick (spheres: isotropic inertia) into
+    ``vel`` and ``ang_vel`` (``body``'s own, named because they are written)."""
     fx, fy, fz, tx, ty, tz = body_force(b, dim, fx, fy, fz, tx, ty, tz, gravity, damping,
-                                        mass, is_fixed, vel, ang_vel, force, torque,
-                                        status_out)
-    if kick and not is_fixed[b]:
+                                        body, force, torque, status_out)
+    if kick and not body.is_fixed[b]:
+        inv_mass = body.inv_mass
+        inv_inertia = body.inv_inertia
         vel[b, 0] += half * fx * inv_mass[b]
         vel[b, 1] += half * fy * inv_mass[b]
         ang_vel[b, 0] += half * tx * inv_inertia[b, 0]

@@ -210,8 +210,9 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
             n_int = n_inner[1]
             work = 0.0
             if MESH:  # 4b. sphere-mesh rows, by blocks of spheres (their sums added in 5)
-                mesh_forces(PW, ROLL, pos, vel, ang_vel, radius, inv_mass, inv_inertia,
-                            mat_id, meshes, params_pw, hdt, overlap_limit, status_out)
+                mesh_forces(PW, ROLL, body, meshes.mesh, meshes.walls, meshes.state,
+                            meshes.mstart, meshes.mflag, msum, params_pw, hdt, overlap_limit,
+                            status_out)
             if SERIAL:
                 # ---- 3-5 on one thread: add each contact to its bodies as it comes,
                 # internal pairs first, then cross pairs (the order the threads use)
@@ -255,9 +256,8 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
                     ty = torque[b, 1] if DIM == 3 else 0.0
                     tz = torque[b, 2] if DIM == 3 else 0.0
                     _finish_body(b, DIM, force[b, 0], force[b, 1], fz, torque[b, 0], ty,
-                                 tz, kick, half, gravity, damping, mass, inv_mass,
-                                 inv_inertia, is_fixed, vel, ang_vel, force, torque,
-                                 status_out)
+                                 tz, kick, half, gravity, damping, body, vel, ang_vel,
+                                 force, torque, status_out)
             else:
                 # ---- 3a. internal pairs, parallel over blocks: both bodies of a pair
                 # belong to the block, so each block adds into its own bodies
@@ -357,8 +357,7 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
                         ty += msum[b, 4]
                         tz += msum[b, 5]
                     _finish_body(b, DIM, fx, fy, fz, tx, ty, tz, kick, half, gravity,
-                                 damping, mass, inv_mass, inv_inertia, is_fixed, vel,
-                                 ang_vel, force, torque, status_out)
+                                 damping, body, vel, ang_vel, force, torque, status_out)
             if MESH:
                 work += mesh_power(meshes)
             if not prime:

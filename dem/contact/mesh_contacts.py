@@ -34,7 +34,7 @@ import numpy as np
 import numba
 
 from .._jit import kernel
-from ..meshwall_kernels import FACE, MeshArrays, _face_closest, _owns
+from ..meshwall_kernels import FACE, _face_closest, _owns
 from ..status import OVERLAP
 from .laws import apply_law, normal_stiffness, row_size
 from .rolling import pair_inertia, rolling_moment
@@ -174,9 +174,14 @@ def _hand_over(i, r, lo, hi, qx, qy, qz, radius, walls, st, mflag):
 
 
 @kernel(inline=True)
-def _mesh_force(i, r, qx, qy, qz, code, roll, pos, vel, ang_vel, radius, inv_mass,
-                inv_inertia, mat_id, mesh, walls, st, params, dt, overlap_limit, status_out):
-    """The force of row r's contact (closest point q) on sphere i: fills the row."""
+def _mesh_force(i, r, q, code, roll, pos, vel, ang_vel, radius, inv_mass, inv_inertia,
+                mat_id, mesh, walls, st, params, dt, overlap_limit, status_out):
+    """The force of row r's contact (closest point ``q`` = (x, y, z)) on sphere i: fills
+    the row of ``st``. Inlined only into :func:`_mesh_spheres`, a real call, so it may
+    write into the bundle ``st``. The body arrays come one by one: read through the
+    bundle in every row, they cost 6 % of a mesh scene's step (docs/performance.md,
+    "The force kernels and the bundles")."""
+    qx, qy, qz = q
     f = st.mrows[r, 1]
     w = walls.face_wall[f]
     ri = radius[i]
@@ -254,7 +259,7 @@ def mesh_sphere(i, code, roll, pos, vel, ang_vel, radius, inv_mass, inv_inertia,
             st.mpower[r] = 0.0
             continue
         on, qx, qy, qz = _touches(i, r, pos, radius, mesh, st)
-        _mesh_force(i, r, qx, qy, qz, code, roll, pos, vel, ang_vel, radius, inv_mass,
+        _mesh_force(i, r, (qx, qy, qz), code, roll, pos, vel, ang_vel, radius, inv_mass,
                     inv_inertia, mat_id, mesh, walls, st, params, dt, overlap_limit,
                     status_out)
     for a in range(6):
@@ -270,15 +275,14 @@ MESH_BLOCK = 64
 
 
 @kernel
-def _mesh_spheres(lo, hi, code, roll, pos, vel, ang_vel, radius, inv_mass, inv_inertia,
-                  mat_id, m0, m1, m2, m3, m4, m5, m6, m7, w0, w1, w2, w3, w4, w5, w6, w7, w8,
-                  s0, s1, s2, s3, s4, s5, s6, mstart, mflag, msum, params, dt,
-                  overlap_limit, status_out):
-    """:func:`mesh_sphere` for spheres lo to hi - 1, the bundles given as their arrays
-    (a real call, from the parallel loop of :func:`mesh_forces`)."""
-    ml = (MeshArrays(m0, m1, m2, m3, m4, m5, m6, m7),
-          MeshMotion(w0, w1, w2, w3, w4, w5, w6, w7, w8),
-          MeshContactState(s0, s1, s2, s3, s4, s5, s6), mstart, mflag, msum)
+def _mesh_spheres(lo, hi, code, roll, body, mesh, walls, st, mstart, mflag, msum, params,
+                  dt, overlap_limit, status_out):
+    """:func:`mesh_sphere` for spheres lo to hi - 1 (a real call, from the parallel loop
+    of :func:`mesh_forces`, which passes the bundles one by one). The body arrays are
+    read from ``body`` here, once per block, and handed to the per-row kernels."""
+    ml = (mesh, walls, st, mstart, mflag, msum)
+    pos, vel, ang_vel, radius = body.pos, body.vel, body.ang_vel, body.radius
+    inv_mass, inv_inertia, mat_id = body.inv_mass, body.inv_inertia, body.mat_id
     for i in range(lo, hi):
         if mstart[i + 1] == mstart[i]:  # no rows: no mesh force
             for a in range(6):
@@ -289,27 +293,26 @@ def _mesh_spheres(lo, hi, code, roll, pos, vel, ang_vel, radius, inv_mass, inv_i
 
 
 @kernel(parallel=True)
-def mesh_forces(code, roll, pos, vel, ang_vel, radius, inv_mass, inv_inertia, mat_id, ml,
-                params, dt, overlap_limit, status_out):
-    """:func:`mesh_sphere` for every sphere, in parallel over blocks of
-    :data:`MESH_BLOCK` spheres: a sphere writes only its own rows and ``msum`` row, so
-    the result does not depend on the thread count (a real call: the sphere loop's
-    passes mishandle this code inlined). ``code`` and ``roll`` are the loop's law code
-    and rolling flag.
+def mesh_forces(code, roll, body, mesh, walls, st, mstart, mflag, msum, params, dt,
+                overlap_limit, status_out):
+    """:func:`mesh_sphere` for every sphere of ``body`` (:class:`~dem.state.BodyArrays`),
+    in parallel over blocks of :data:`MESH_BLOCK` spheres: a sphere writes only its own
+    rows and ``msum`` row, so the result does not depend on the thread count. ``code``
+    and ``roll`` are the loop's law code and rolling flag; ``mesh`` to ``msum`` are the
+    fields of :class:`MeshLoop`.
 
-    Numba passes arrays and numbers into a parallel loop, not named tuples: the
-    bundles go in as their arrays, and :func:`_mesh_spheres` puts them together.
+    The rows are written by a real call (:func:`_mesh_spheres`), not code inlined into
+    the parallel loop: numba drops writes into a named tuple's arrays made there
+    (``tests/test_architecture.py``, ``bundle_writes``). The bundles come in as
+    arguments of their own: numba passes a named tuple into a parallel loop only when
+    it can find its class, which it cannot for one unpacked from another inside the
+    function (it stops with an ``AttributeError``).
     """
-    mesh, walls, st, mstart, mflag, msum = ml
-    m0, m1, m2, m3, m4, m5, m6, m7 = mesh
-    w0, w1, w2, w3, w4, w5, w6, w7, w8 = walls
-    s0, s1, s2, s3, s4, s5, s6 = st
-    n = pos.shape[0]
+    n = body.pos.shape[0]
     for blk in numba.prange((n + MESH_BLOCK - 1) // MESH_BLOCK):
-        _mesh_spheres(blk * MESH_BLOCK, min(n, (blk + 1) * MESH_BLOCK), code, roll, pos, vel,
-                      ang_vel, radius, inv_mass, inv_inertia, mat_id, m0, m1, m2, m3, m4, m5,
-                      m6, m7, w0, w1, w2, w3, w4, w5, w6, w7, w8, s0, s1, s2, s3, s4, s5, s6,
-                      mstart, mflag, msum, params, dt, overlap_limit, status_out)
+        _mesh_spheres(blk * MESH_BLOCK, min(n, (blk + 1) * MESH_BLOCK), code, roll, body,
+                      mesh, walls, st, mstart, mflag, msum, params, dt, overlap_limit,
+                      status_out)
 
 
 @kernel

@@ -131,17 +131,17 @@ def _part_pose(e, dim, ebody, eoff, eq, eprad, pos, rot, radius, normal, epos, e
 
 
 @kernel(inline=True)
-def _finish_rigid(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, mass,
-                  inv_mass, inv_inertia, is_fixed, rot, vel, ang_vel, force, torque,
-                  status_out):
+def _finish_rigid(b, dim, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping, body, rot,
+                  vel, ang_vel, force, torque, status_out):
     """:func:`~dem.contact.kinematics.body_force`, then the second half kick (anisotropic
-    rotation in 3D)."""
+    rotation in 3D) into ``rot``, ``vel`` and ``ang_vel`` (``body``'s own, named because
+    they are written)."""
     fx, fy, fz, tx, ty, tz = body_force(b, dim, fx, fy, fz, tx, ty, tz, gravity, damping,
-                                        mass, is_fixed, vel, ang_vel, force, torque,
-                                        status_out)
-    if kick and not is_fixed[b]:
+                                        body, force, torque, status_out)
+    if kick and not body.is_fixed[b]:
+        inv_mass = body.inv_mass
         vel[b, 0] += half * fx * inv_mass[b]
         vel[b, 1] += half * fy * inv_mass[b]
         if dim == 3:
             vel[b, 2] += half * fz * inv_mass[b]
-        _kick_rotation(dim, b, half, rot, ang_vel, torque, inv_inertia)
+        _kick_rotation(dim, b, half, rot, ang_vel, torque, body.inv_inertia)

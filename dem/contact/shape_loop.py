@@ -301,8 +301,7 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                         ty += wtorque[k, 1]
                         tz += wtorque[k, 2]
                 _finish_rigid(b, DIM, fx, fy, fz, tx, ty, tz, kick, half, gravity, damping,
-                              mass, inv_mass, inv_inertia, is_fixed, rot, vel, ang_vel,
-                              force, torque, status_out)
+                              body, rot, vel, ang_vel, force, torque, status_out)
             if not prime:
                 work_out[0] += work * dt
             if status_out[0] != OK:

@@ -8,6 +8,7 @@ sums, in family order, do not depend on the number of threads.
 """
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 from numba import prange
@@ -15,6 +16,52 @@ from numba import prange
 from .._jit import kernel
 from ..status import NONFINITE, OK, REBUILD
 from .materials import P_ALPHA, P_C, P_CORR, P_KAPPA, P_MODEL, P_SCRIT, PMB_CODE
+
+
+class Bonds(NamedTuple):
+    """The bonds of a peridynamic scene, what the bond and force passes read: the
+    families (``start`` (n + 1,), ``nbr``, ``twin`` (nb,) int64 and reference
+    ``length`` (nb,) [m], each bond stored in both directions), the influence ``omega``
+    (nb,), the points' volumes ``vol`` [m^3], weighted volumes ``qw``, the dilation
+    weights ``pw`` and surface corrections ``corr`` (nb,), the dilation ``theta`` and
+    its deviatoric part ``sdev`` (n,) of the current state, the material row ``params``
+    and the broken flags ``broken`` (nb,) uint8."""
+
+    start: np.ndarray
+    nbr: np.ndarray
+    twin: np.ndarray
+    length: np.ndarray
+    omega: np.ndarray
+    vol: np.ndarray
+    qw: np.ndarray
+    pw: np.ndarray
+    corr: np.ndarray
+    theta: np.ndarray
+    sdev: np.ndarray
+    params: np.ndarray
+    broken: np.ndarray
+
+
+class Contacts(NamedTuple):
+    """The contacts of a peridynamic scene: candidate pairs ``cpairs`` (m, 2) int64,
+    the ids of the wall bodies ``walls`` and every body's ``normal`` (the walls'), and
+    the penalty stiffness ``kn`` [N/m]."""
+
+    cpairs: np.ndarray
+    walls: np.ndarray
+    normal: np.ndarray
+    kn: float
+
+
+class Loads(NamedTuple):
+    """The loads of a peridynamic scene: body force ``bforce`` (n, d) [N] scaled by the
+    profile ``(prof_t, prof_v)`` (times [s] and factors; empty: 1), and ``gravity``
+    (d,) [m/s^2]."""
+
+    bforce: np.ndarray
+    prof_t: np.ndarray
+    prof_v: np.ndarray
+    gravity: np.ndarray
 
 
 @kernel(inline=True)
@@ -207,10 +254,15 @@ def contact_pass(pos, radius, start, nbr, broken, cpairs, walls, wnormal, kn, fo
 
 
 @kernel
-def forces(pos, radius, start, nbr, twin, length, omega, vol, qw, pw, corr, theta, sdev,
-           params, broken, cpairs, walls, wnormal, kn, bforce, scale, gravity, mass, fixed,
-           force_out):
-    """Every force of the current state into ``force_out`` (zeroed first)."""
+def forces(pos, radius, mass, fixed, bonds, contacts, loads, scale, force_out):
+    """Every force of the current state into ``force_out`` (zeroed first): the body
+    force of ``loads`` times ``scale``, gravity, then the bonds (:class:`Bonds`; their
+    dilations are written into ``bonds.theta`` and ``bonds.sdev``) and the contacts
+    (:class:`Contacts`). The bundles are unpacked here, outside the parallel passes."""
+    (start, nbr, twin, length, omega, vol, qw, pw, corr, theta, sdev, params,
+     broken) = bonds
+    cpairs, walls, wnormal, kn = contacts
+    bforce, gravity = loads.bforce, loads.gravity
     n, d = pos.shape
     for i in range(n):
         for k in range(d):
@@ -232,10 +284,8 @@ def _damped(f, v, damping):
 
 
 @kernel
-def step_chunk(n_steps, t0, dt, damping, pos, vel, radius, mass, fixed, start, nbr, twin,
-               length, omega, vol, qw, pw, corr, theta, sdev, params, broken, cpairs, walls,
-               wnormal, kn, bforce, prof_t, prof_v, gravity, pos_ref, half_skin, force,
-               status):
+def step_chunk(n_steps, t0, dt, damping, pos, vel, radius, mass, fixed, bonds, contacts,
+               loads, pos_ref, half_skin, force, status):
     """Up to ``n_steps`` velocity-Verlet steps; returns the number done.
 
     Per step: half kick with the force of the last step, drift (fixed bodies move with
@@ -247,6 +297,7 @@ def step_chunk(n_steps, t0, dt, damping, pos, vel, radius, mass, fixed, start, n
     or a body that moves more than its radius in one step (a run blowing up), ends it
     with ``NONFINITE``.
     """
+    prof_t, prof_v = loads.prof_t, loads.prof_v
     n, d = pos.shape
     status[0] = OK
     status[1] = -1
@@ -262,9 +313,7 @@ def step_chunk(n_steps, t0, dt, damping, pos, vel, radius, mass, fixed, start, n
                     pos[i, k] += dt * vel[i, k]
         t = t0 + (s + 1) * dt
         scale = np.interp(t, prof_t, prof_v) if prof_t.size else 1.0
-        forces(pos, radius, start, nbr, twin, length, omega, vol, qw, pw, corr, theta, sdev,
-               params, broken, cpairs, walls, wnormal, kn, bforce, scale, gravity, mass,
-               fixed, force)
+        forces(pos, radius, mass, fixed, bonds, contacts, loads, scale, force)
         far = 0.0
         for i in range(n):
             if fixed[i]:

@@ -17,6 +17,9 @@ from ..progress import progress_bar
 from ..simulation import PARALLEL_MIN_BODIES, SimulationError
 from ..status import NONFINITE, REBUILD
 from .kernels import (
+    Bonds,
+    Contacts,
+    Loads,
     bond_pass,
     energy_density,
     forces,
@@ -222,17 +225,16 @@ class PDSimulation:
         eps = 1e-6 * self.dx
         v = np.random.default_rng(seed).standard_normal(x0.shape) * (scale > 0)
         out = np.zeros_like(x0)
-        theta = np.zeros(b.n)
+        bonds = self._bonds(theta=np.zeros(b.n), sdev=np.zeros(b.n), params=params,
+                            broken=np.zeros_like(f.broken))
+        contacts = Contacts(np.zeros((0, 2), np.int64), np.zeros(0, np.int64), b.normal, 0.0)
+        loads = Loads(np.zeros_like(x0), np.zeros(0), np.zeros(0), np.zeros(self.dim))
         lam = 0.0
-        nothing = np.zeros((0, 2), np.int64)
         for _ in range(iterations):
             v /= np.abs(v).max()
             out[:] = 0.0
-            forces(x0 + eps * scale * v, b.radius, f.start, f.nbr, f.twin, f.length, self.omega,
-                   self.vol, self.qw, self.pw, self.corr, theta, np.zeros(b.n), params,
-                   np.zeros_like(f.broken), nothing, np.zeros(0, np.int64), b.normal, 0.0,
-                   np.zeros_like(x0), 0.0,
-                   np.zeros(self.dim), b.mass, np.ones(b.n, np.uint8), out)
+            forces(x0 + eps * scale * v, b.radius, b.mass, np.ones(b.n, np.uint8), bonds,
+                   contacts, loads, 0.0, out)
             w = -scale * out / eps
             lam_old, lam = lam, float((w * v).sum() / (v * v).sum())
             v = w
@@ -260,15 +262,26 @@ class PDSimulation:
         self.cpairs = np.ascontiguousarray(pairs, np.int64)
         self._pos_ref = b.pos.copy()
 
+    def _bonds(self, **change):
+        """The :class:`~dem.peridynamics.kernels.Bonds` of the current state, made
+        afresh (fields in ``change`` replaced)."""
+        f = self.family
+        return Bonds(f.start, f.nbr, f.twin, f.length, self.omega, self.vol, self.qw,
+                     self.pw, self.corr, self.theta, self.sdev, self.params,
+                     f.broken)._replace(**change)
+
+    def _contacts(self):
+        return Contacts(self.cpairs, self.walls, self.bodies.normal, float(self.contact_kn))
+
+    def _loads(self):
+        return Loads(self.bforce, self._prof_t, self._prof_v, self.gravity)
+
     def _forces(self):
-        b, f = self.bodies, self.family
+        b = self.bodies
         scale = float(np.interp(self.time, self._prof_t, self._prof_v)) if \
             self._prof_t.size else 1.0
-        forces(b.pos, b.radius, f.start, f.nbr, f.twin, f.length, self.omega, self.vol,
-               self.qw, self.pw, self.corr, self.theta, self.sdev, self.params, f.broken,
-               self.cpairs, self.walls,
-               b.normal, self.contact_kn, self.bforce, scale, self.gravity, b.mass,
-               self._fixed, b.force)
+        forces(b.pos, b.radius, b.mass, self._fixed, self._bonds(), self._contacts(),
+               self._loads(), scale, b.force)
 
     def prime(self):
         """Contact list and forces of the current state (idempotent)."""
@@ -289,7 +302,7 @@ class PDSimulation:
         self.prime()
         end = self.step + n_steps
         bar = progress_bar(n_steps, progress)
-        b, f = self.bodies, self.family
+        b = self.bodies
         try:
             while self.step < end:
                 stop = end
@@ -299,12 +312,9 @@ class PDSimulation:
                 while self.step < stop:
                     done = step_chunk(
                         stop - self.step, self.time, self.dt, self.damping, b.pos, b.vel,
-                        b.radius, b.mass, self._fixed, f.start, f.nbr, f.twin, f.length,
-                        self.omega, self.vol, self.qw, self.pw, self.corr, self.theta,
-                        self.sdev, self.params, f.broken,
-                        self.cpairs, self.walls, b.normal, self.contact_kn, self.bforce,
-                        self._prof_t, self._prof_v, self.gravity, self._pos_ref,
-                        0.5 * self.skin, b.force, self._status)
+                        b.radius, b.mass, self._fixed, self._bonds(), self._contacts(),
+                        self._loads(), self._pos_ref, 0.5 * self.skin, b.force,
+                        self._status)
                     self.step += done
                     self.time = self.step * self.dt
                     if self._status[0] == NONFINITE:

@@ -123,8 +123,8 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
         hist, touch, fpair = pstate
         whist, wforce, wtorque = wstate
         contrib, slot, inc_start, blk_start, inner, n_inner, pos_inner, wstart = index
-        msum = meshes.msum  # (n, 6) each sphere's mesh force and torque (arrays only
-        # enter the parallel loops)
+        msum = meshes.msum  # (n, 6) each sphere's mesh force and torque (``meshes``
+        # holds named tuples, which numba does not pass into a parallel loop)
         n = pos.shape[0]
         mw = wpairs.shape[0]
         status_out[0] = OK

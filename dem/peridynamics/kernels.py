@@ -22,10 +22,11 @@ class Bonds(NamedTuple):
     """The bonds of a peridynamic scene, what the bond and force passes read: the
     families (``start`` (n + 1,), ``nbr``, ``twin`` (nb,) int64 and reference
     ``length`` (nb,) [m], each bond stored in both directions), the influence ``omega``
-    (nb,), the points' volumes ``vol`` [m^3], weighted volumes ``qw``, the dilation
-    weights ``pw`` and surface corrections ``corr`` (nb,), the dilation ``theta`` and
-    its deviatoric part ``sdev`` (n,) of the current state, the material row ``params``
-    and the broken flags ``broken`` (nb,) uint8."""
+    (nb,), the points' volumes ``vol`` (n,) [m^3], the dilation weights ``qw`` (nb,),
+    the inverse weighted volume of each bond's owner ``pw`` (nb,), the surface
+    corrections ``corr`` (n,), the dilation ``theta`` and the weighted deviatoric
+    extension ``sdev`` (n,) of the current state (written by the bond pass), the
+    material row ``params`` and the broken flags ``broken`` (nb,) uint8."""
 
     start: np.ndarray
     nbr: np.ndarray

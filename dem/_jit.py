@@ -100,8 +100,13 @@ def kernel(fn=None, *, parallel=False, inline=False, cache=True):
 
     ``cache=False`` keeps the function off the disk cache even where ``DEM_JIT_CACHE``
     allows it: for helpers that are only ever compiled into a cached caller (the ADMM
-    solver's pieces), and for functions that hold per-process objects (see
-    :func:`specialise`).
+    solver's pieces), for functions that hold per-process objects (see
+    :func:`specialise`), and for those specialised on a user's function passed as an
+    argument (the mass properties of :class:`dem.shapes.CustomShape`), whose cache
+    entries would miss in every new process.
+
+    No module compiles with numba but through this one
+    (``tests/test_architecture.py``, ``compile_paths``).
     """
     deco = numba.njit(cache=CACHE and cache, parallel=dict(PRANGE_ONLY) if parallel else False,
                       fastmath=False,

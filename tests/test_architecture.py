@@ -10,7 +10,8 @@ serially through the same code); the kernels' status codes are defined in
 ``dem/status.py`` only; no module is longer than 600 lines but those listed in
 :data:`LONG_MODULES` with their reason; no function is longer than 100 lines and no
 compiled kernel takes more than 20 arguments but those listed in :data:`LONG_FUNCTIONS`
-and :data:`MANY_ARGUMENTS` with theirs.
+and :data:`MANY_ARGUMENTS` with theirs; every function is compiled through
+``dem._jit``.
 """
 
 import ast
@@ -228,6 +229,47 @@ def test_status_codes_are_defined_once():
     assert not found, "status codes defined outside dem/status.py: " + ", ".join(found)
 
 
+#: numba's entry points that compile a function
+NUMBA_COMPILERS = ("njit", "jit", "cfunc", "vectorize", "guvectorize", "stencil",
+                   "generated_jit")
+
+
+def compile_paths(files, root=ROOT, owner="dem/_jit.py"):
+    """Where a module other than ``owner`` reaches one of numba's compilers: an
+    attribute ``numba.njit`` (decorator or call) or ``from numba import njit``."""
+    found = []
+    for path in files.values():
+        rel = path.relative_to(root).as_posix()
+        if rel == owner:
+            continue
+        for node in ast.walk(ast.parse(path.read_text())):
+            if (isinstance(node, ast.Attribute) and node.attr in NUMBA_COMPILERS
+                    and isinstance(node.value, ast.Name) and node.value.id == "numba"):
+                found.append(f"{rel}:{node.lineno} numba.{node.attr}")
+            elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith("numba"):
+                found += [f"{rel}:{node.lineno} from {node.module} import {a.name}"
+                          for a in node.names if a.name in NUMBA_COMPILERS]
+    return sorted(found)
+
+
+def test_the_compile_path_check_sees_numba_compilers(tmp_path):
+    (tmp_path / "a.py").write_text(
+        "import numba\n@numba.njit\ndef f(x):\n    return x\n"
+        "g = numba.jit(cache=True)(f)\nok = numba.prange\n")
+    (tmp_path / "b.py").write_text("from numba import cfunc, types\n")
+    (tmp_path / "_jit.py").write_text("import numba\nk = numba.njit\n")
+    files = {n: tmp_path / f"{n}.py" for n in ("a", "b", "_jit")}
+    assert compile_paths(files, root=tmp_path, owner="_jit.py") == [
+        "a.py:2 numba.njit", "a.py:5 numba.jit", "b.py:1 from numba import cfunc"]
+
+
+def test_every_compile_path_goes_through_dem_jit():
+    """``dem._jit`` owns the compile options (error model, cache, inlining, the prange
+    passes): a kernel compiled elsewhere would miss them and their documentation."""
+    found = compile_paths(FILES)
+    assert not found, "numba compiled outside dem/_jit.py: " + ", ".join(found)
+
+
 #: the most lines a module of ``dem`` or ``hmm`` may have
 MAX_LINES = 600
 #: modules allowed above :data:`MAX_LINES`, each with its reason
@@ -288,14 +330,20 @@ MANY_ARGUMENTS = {
 }
 
 
+_COMPILERS = ("kernel", "njit", "jit")
+
+
+def _compiles(deco):
+    """Whether a decorator compiles its function: ``kernel``, ``njit`` or ``jit``, bare,
+    called or reached as an attribute (``numba.njit``)."""
+    target = deco.func if isinstance(deco, ast.Call) else deco
+    name = target.attr if isinstance(target, ast.Attribute) else getattr(target, "id", "")
+    return name in _COMPILERS
+
+
 def _is_kernel(node):
     """Whether a function is compiled: decorated with ``kernel``, ``njit`` or ``jit``."""
-    for deco in node.decorator_list:
-        target = deco.func if isinstance(deco, ast.Call) else deco
-        name = target.attr if isinstance(target, ast.Attribute) else getattr(target, "id", "")
-        if name in ("kernel", "njit", "jit"):
-            return True
-    return False
+    return any(_compiles(deco) for deco in node.decorator_list)
 
 
 def oversized_functions(files, max_lines=MAX_FUNCTION_LINES, max_args=MAX_KERNEL_ARGS,
@@ -350,14 +398,10 @@ def test_no_function_over_100_lines_and_no_kernel_over_20_arguments():
 def _is_inline(node):
     """Whether a function is a kernel inlined into its callers (``kernel(inline=True)``,
     ``njit(inline="always")``)."""
-    for deco in node.decorator_list:
-        if isinstance(deco, ast.Call) and _is_kernel(ast.FunctionDef(
-                name="", args=node.args, body=[], decorator_list=[deco])):
-            for kw in deco.keywords:
-                if kw.arg == "inline" and isinstance(kw.value, ast.Constant) \
-                        and kw.value.value in (True, "always"):
-                    return True
-    return False
+    return any(isinstance(deco, ast.Call) and _compiles(deco)
+               and any(kw.arg == "inline" and isinstance(kw.value, ast.Constant)
+                       and kw.value.value in (True, "always") for kw in deco.keywords)
+               for deco in node.decorator_list)
 
 
 def _is_prange(node):

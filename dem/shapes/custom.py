@@ -36,6 +36,7 @@ import numba
 import numpy as np
 from numba.core.registry import CPUDispatcher
 
+from .._jit import kernel
 from .massprops import (
     check_density,
     check_scale,
@@ -50,12 +51,12 @@ DEFAULT_RESOLUTION = {2: 512, 3: 100}
 REFINE = 4  # sub-cells per axis in cells cut by the surface
 N_PARAMS = 4
 
-# Plain njit, not dem._jit.kernel: these take the user's function as an argument and are
-# specialised for each one; a disk cache keyed on that function's type misses on every
-# new process, so caching would only fill the cache directory.
+# Kept off the disk cache (cache=False): these take the user's function as an argument
+# and are specialised for each one; a disk cache keyed on that function's type misses on
+# every new process, so caching would only fill the cache directory.
 
 
-@numba.njit(error_model="numpy")
+@kernel(cache=False)
 def _sdf_at(fn, p, rot, offset, scale, x, y, z):
     """``scale * fn(rot @ (x, y, z) / scale + offset, p)``."""
     ux = (rot[0, 0] * x + rot[0, 1] * y + rot[0, 2] * z) / scale + offset[0]
@@ -64,7 +65,7 @@ def _sdf_at(fn, p, rot, offset, scale, x, y, z):
     return scale * fn(ux, uy, uz, p)
 
 
-@numba.njit(error_model="numpy")
+@kernel(cache=False)
 def _sdf_points(fn, p, rot, offset, scale, points, out):
     """Signed distances of ``points`` (m, 3) written to ``out`` (m,)."""
     for i in range(points.shape[0]):
@@ -72,7 +73,7 @@ def _sdf_points(fn, p, rot, offset, scale, points, out):
                          points[i, 2])
 
 
-@numba.njit(error_model="numpy")
+@kernel(cache=False)
 def _add_cell(w, x, y, z, corr, dim, first_out, second_out):
     """Add a cell of weight ``w`` [m^d] centred at ``(x, y, z)`` to the moments."""
     first_out[0] += w * x
@@ -87,7 +88,7 @@ def _add_cell(w, x, y, z, corr, dim, first_out, second_out):
         second_out[1, 2] += w * y * z
 
 
-@numba.njit(error_model="numpy")
+@kernel(cache=False)
 def _grid_moments(fn, p, rot, offset, scale, half_width, n, refine, dim, radius,
                   first_out, second_out):
     """Integrate the smoothed indicator over ``n^dim`` cells of ``[-half_width, ...]``.

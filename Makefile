@@ -75,6 +75,7 @@ bench: $(STAMP)
 	$(BIN)/python benchmarks/porous_coupling.py
 	$(BIN)/python benchmarks/shape_limits.py
 	$(BIN)/python benchmarks/rve_call.py
+	$(BIN)/python benchmarks/shape_rve_chunks.py
 	$(BIN)/python benchmarks/mpi_scaling.py
 	DIMS="2 3" $(BIN)/python benchmarks/rve_vs_yade.py
 	$(BIN)/python benchmarks/rve_size_accuracy.py

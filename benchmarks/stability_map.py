@@ -396,7 +396,8 @@ def newton_panel(quick):
 # --------------------------------------------------------------------------- f. ADMM
 def admm_panel(quick):
     from dem.contact.detection.admm import N_WARM, admm_contact
-    from dem.shapes.table import BOX, ShapeTable
+    from dem.shapes.kinds import BOX
+    from dem.shapes.table import ShapeTable
 
     def geo_of(*halves):
         t = ShapeTable()

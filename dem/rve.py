@@ -57,12 +57,13 @@ from .simulation import Simulation, SimulationError
 from .timestep import quasi_static_dt
 from .packings import loose_cloud, particle_radii, shape_bodies, solid_volume
 from .shapes import Shape
+from .shapes.registry import kinds_with
 from .state import Bodies
 
 log = logging.getLogger(__name__)
 
 #: shape kinds an RVE holds besides spheres/disks
-POLYTOPES = (Shape.BOX, Shape.POLYGON, Shape.POLYHEDRON)
+POLYTOPES = kinds_with("polytope")
 
 
 class RelaxationError(SimulationError):

@@ -7,17 +7,18 @@ is an edge to ``dem.shapes.table``, ``from . import rotation`` one to ``dem.rota
 The asserted rules: no import cycle; ``dem`` never imports ``hmm``; ``mpi4py`` is
 imported in ``hmm/farm.py`` only, and there only inside functions (the suite runs
 serially through the same code); the kernels' status codes are defined in
-``dem/status.py`` only; no module is longer than 600 lines but those listed in
-:data:`LONG_MODULES` with their reason; no function is longer than 100 lines and no
-compiled kernel takes more than 20 arguments but those listed in :data:`LONG_FUNCTIONS`
-and :data:`MANY_ARGUMENTS` with theirs; every function is compiled through
-``dem._jit``.
+``dem/status.py`` only, the shape kinds in ``dem/shapes/kinds.py`` only; no module is
+longer than 600 lines but those listed in :data:`LONG_MODULES` with their reason; no
+function is longer than 100 lines and no compiled kernel takes more than 20 arguments
+but those listed in :data:`LONG_FUNCTIONS` and :data:`MANY_ARGUMENTS` with theirs;
+every function is compiled through ``dem._jit``.
 """
 
 import ast
 from collections import deque
 from pathlib import Path
 
+from dem.shapes import Shape
 from dem.status import Status
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -212,21 +213,67 @@ def test_mpi4py_only_in_the_farm_and_lazily():
     assert not eager, f"hmm/farm.py imports mpi4py at module level, lines {eager}"
 
 
+def _bound_pairs(target, value):
+    """``(target name node, value node or None)`` of one assignment target: a tuple
+    target takes its values element by element when the value is a tuple of the same
+    length, else ``None`` each."""
+    if not isinstance(target, ast.Tuple):
+        return [(target, value)]
+    if isinstance(value, ast.Tuple) and len(value.elts) == len(target.elts):
+        return list(zip(target.elts, value.elts, strict=True))
+    return [(e, None) for e in target.elts]
+
+
+def module_bindings(path, names, int_literals=False):
+    """``(line, name)`` for each module-level assignment in ``path`` that binds one of
+    ``names``; with ``int_literals``, only those binding it to an integer literal
+    (``BOX = 2``, ``SPHERE, PLANE = 0, 1``)."""
+    found = []
+    for node in ast.parse(path.read_text()).body:
+        if isinstance(node, ast.Assign):
+            targets, value = node.targets, node.value
+        elif isinstance(node, ast.AnnAssign):
+            targets, value = [node.target], node.value
+        else:
+            continue
+        for target in targets:
+            for name, bound in _bound_pairs(target, value):
+                if not (isinstance(name, ast.Name) and name.id in names):
+                    continue
+                if int_literals and not (isinstance(bound, ast.Constant)
+                                         and type(bound.value) is int):
+                    continue
+                found.append((node.lineno, name.id))
+    return found
+
+
+def test_the_binding_scan_sees_codes_written_as_numbers(tmp_path):
+    path = tmp_path / "m.py"
+    path.write_text("BOX = 2\nSPHERE, PLANE = 0, 1\nCUSTOM = int(K.CUSTOM)\n"
+                    "POLYGON = 0.08\ndef f():\n    BOX = 3\n")
+    names = {"BOX", "SPHERE", "PLANE", "CUSTOM", "POLYGON"}
+    assert module_bindings(path, names, int_literals=True) == [
+        (1, "BOX"), (2, "SPHERE"), (2, "PLANE")]
+    assert [n for _, n in module_bindings(path, names)] == [
+        "BOX", "SPHERE", "PLANE", "CUSTOM", "POLYGON"]
+
+
 def test_status_codes_are_defined_once():
     """No module but ``dem.status`` binds a status name to a value of its own."""
     names = {member.name for member in Status} | {"FAILED"}
-    found = []
-    for name, path in FILES.items():
-        if name == "dem.status":
-            continue
-        for node in ast.parse(path.read_text()).body:
-            targets = node.targets if isinstance(node, ast.Assign) else [
-                node.target] if isinstance(node, ast.AnnAssign) else []
-            for target in targets:
-                elts = target.elts if isinstance(target, ast.Tuple) else [target]
-                found += [f"{path.relative_to(ROOT)}:{node.lineno} {e.id}" for e in elts
-                          if isinstance(e, ast.Name) and e.id in names]
+    found = [f"{path.relative_to(ROOT)}:{line} {name}" for mod, path in FILES.items()
+             if mod != "dem.status" for line, name in module_bindings(path, names)]
     assert not found, "status codes defined outside dem/status.py: " + ", ".join(found)
+
+
+def test_shape_kinds_are_defined_once():
+    """No module but ``dem.shapes.kinds`` writes a shape kind's code as a number (a
+    ``BOX`` that means a length, as in the demo, is not a code)."""
+    names = {member.name for member in Shape}
+    found = [f"{path.relative_to(ROOT)}:{line} {name}" for mod, path in FILES.items()
+             if mod != "dem.shapes.kinds"
+             for line, name in module_bindings(path, names, int_literals=True)]
+    assert not found, "shape kinds defined outside dem/shapes/kinds.py: " + ", ".join(found)
 
 
 #: numba's entry points that compile a function

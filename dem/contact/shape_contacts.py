@@ -10,7 +10,8 @@ a user-defined shape (its call stays in the loop, where it is bound to the user'
 import math
 
 from .._jit import kernel
-from ..shapes.table import BOX, CUSTOM, POLYGON, POLYHEDRON, SPHERE
+from ..shapes.kinds import BOX, CUSTOM, SPHERE
+from ..shapes.registry import kinds_with
 from ..status import OVERLAP
 from .detection.analytic import sphere_box, sphere_polytope
 from .detection.polytope import polytope_contact, polytope_plane
@@ -23,17 +24,9 @@ M_SPHERES, M_SPHERE_BOX, M_SPHERE_POLY, M_POLY, M_ADMM = 0, 1, 2, 3, 4
 W_SPHERE, W_POLY, W_ADMM = 0, 1, 2
 
 
-#: detection methods
-M_SPHERES, M_SPHERE_BOX, M_SPHERE_POLY, M_POLY, M_ADMM = 0, 1, 2, 3, 4
-
-
-#: wall methods
-W_SPHERE, W_POLY, W_ADMM = 0, 1, 2
-
-
 def method_for(ka, kb, force_admm=False):
     """Detection method for a pair of shape kinds ``ka <= kb`` (walls apart)."""
-    poly = (BOX, POLYGON, POLYHEDRON)
+    poly = kinds_with("polytope")
     if ka == SPHERE and kb == SPHERE:
         return M_SPHERES
     if force_admm or CUSTOM in (ka, kb):

@@ -39,7 +39,7 @@ import numba
 import numpy as np
 
 from .._jit import recipe, specialise
-from ..shapes.table import PLANE
+from ..shapes.kinds import PLANE
 from ..status import NOCONVERGE, NONFINITE, OK, REBUILD
 from .detection.admm import admm_contact, make_admm
 from .kinematics import _cell_map, _cell_start, _deform_cell, _strain_norm, cell_spin, moved2

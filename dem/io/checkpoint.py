@@ -45,6 +45,7 @@ from ..boundary import PeriodicCell
 from ..mesh_scene import walls_from_snapshot
 from ..neighbors import Box
 from ..shapes import Shape
+from ..shapes.registry import kinds_with
 from ..simulation import Simulation
 from ..state import Bodies
 from .files import OutputError, write_h5_atomic
@@ -86,7 +87,7 @@ _TABLE_SPEC = (("kind", (), _I8, "ns"), ("param", (4,), _F8, "ns"), ("scale", ()
 #: the compound part pool, absent from files written before compounds existed
 _COMPOUND_NAMES = ("cstart", "part_kind", "part_row", "part_off", "part_rot", "part_rad")
 #: shape-table kinds a file may hold (spheres and planes have no row; custom SDFs are code)
-_STORABLE_KINDS = (Shape.BOX, Shape.POLYGON, Shape.POLYHEDRON, Shape.COMPOUND)
+_STORABLE_KINDS = kinds_with("stored")
 
 
 # ------------------------------------------------------------------ bodies

@@ -6,6 +6,7 @@ import numpy as np
 
 from ..rotation import rotation_matrices
 from ..shapes import Shape
+from ..shapes.registry import kinds_with
 
 
 def pad3(a):
@@ -71,7 +72,7 @@ def wall_patches(wall_pos, wall_normal, centre, half):
 
 
 #: shape kinds drawn as surfaces: those whose shape-table row holds vertices
-SURFACE_KINDS = (Shape.BOX, Shape.POLYGON, Shape.POLYHEDRON)
+SURFACE_KINDS = kinds_with("polytope")
 
 
 def shape_surfaces(bodies):

@@ -6,10 +6,10 @@ Signed distance ("eq 26"): with ``q = |x| - h`` componentwise,
 
 import numpy as np
 
+from .kinds import BOX
 from .massprops import check_density, check_scale
 from .polygon import as_points
 
-BOX = 2
 
 
 class Box:
@@ -34,6 +34,8 @@ class Box:
     """
 
     code = BOX
+    polytope = True   # vertices and faces: exact detection, a surface in XDMF
+    stored = True     # a shape-table row that checkpoints keep
 
     def __init__(self, half_extents):
         h = np.array(half_extents, dtype=np.float64)

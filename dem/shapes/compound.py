@@ -34,12 +34,12 @@ from scipy.spatial import HalfspaceIntersection, QhullError
 
 from ..rotation import matrix_to_quat, quat_to_matrix
 from .box import Box
+from .kinds import COMPOUND
 from .massprops import check_density, moments_about_axes, principal_axes
 from .polygon import ConvexPolygon, as_points
 from .polyhedron import ConvexPolyhedron
 from .sphere import Sphere
 
-COMPOUND = 6
 #: grid cells along the longest side of the union, for overlapping spheres
 GRID = {2: 1024, 3: 160}
 #: an intersection whose inscribed ball is below this fraction of its parts' size is
@@ -101,6 +101,8 @@ class Compound:
     """
 
     code = COMPOUND
+    polytope = False  # its parts are; each is its own contact
+    stored = True
 
     def __init__(self, parts, dim=None):
         parts = list(parts)

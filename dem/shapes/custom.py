@@ -37,6 +37,7 @@ import numpy as np
 from numba.core.registry import CPUDispatcher
 
 from .._jit import kernel
+from .kinds import CUSTOM
 from .massprops import (
     check_density,
     check_scale,
@@ -46,7 +47,6 @@ from .massprops import (
 )
 from .polygon import as_points
 
-CUSTOM = 5
 DEFAULT_RESOLUTION = {2: 512, 3: 100}
 REFINE = 4  # sub-cells per axis in cells cut by the surface
 N_PARAMS = 4
@@ -192,6 +192,8 @@ class CustomShape:
     """
 
     code = CUSTOM
+    polytope = False
+    stored = False  # its SDF is the user's code, not data
 
     def __init__(self, sdf, bounding_radius, dim, params=(), resolution=None):
         if not (isinstance(sdf, CPUDispatcher)

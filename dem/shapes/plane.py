@@ -7,6 +7,7 @@ so a particle in front of the wall has positive signed distance to it.
 import numpy as np
 
 from .._jit import kernel
+from .kinds import PLANE
 
 
 @kernel
@@ -30,6 +31,10 @@ class Plane:
     >>> p.normal.tolist()
     [0.0, 0.0, 1.0]
     """
+
+    code = PLANE
+    polytope = False
+    stored = False  # no shape-table row: a plane is its normal
 
     def __init__(self, normal):
         n = np.asarray(normal, dtype=np.float64)

@@ -8,6 +8,7 @@ to the nearest edge segment.
 
 import numpy as np
 
+from .kinds import POLYGON
 from .massprops import (
     boundary_mass_properties,
     check_body_frame,
@@ -15,7 +16,6 @@ from .massprops import (
     check_scale,
 )
 
-POLYGON = 3
 
 
 def as_points(points, dim):
@@ -117,6 +117,8 @@ class ConvexPolygon:
 
     dim = 2
     code = POLYGON
+    polytope = True
+    stored = True
 
     def __init__(self, vertices):
         v = np.asarray(vertices, dtype=np.float64)

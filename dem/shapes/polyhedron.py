@@ -12,6 +12,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError, cKDTree
 from scipy.spatial.distance import cdist
 
+from .kinds import POLYHEDRON
 from .massprops import (
     boundary_mass_properties,
     check_body_frame,
@@ -22,7 +23,6 @@ from .massprops import (
 )
 from .polygon import ConvexPolygon, as_points, convex_hull_2d
 
-POLYHEDRON = 4
 
 _COPLANAR = 1e-9  # relative tolerance for merging hull facets into one face
 _CHUNK = 1 << 18  # points x triangles per block in the distance evaluation
@@ -85,6 +85,8 @@ class ConvexPolyhedron:
 
     dim = 3
     code = POLYHEDRON
+    polytope = True
+    stored = True
 
     def __init__(self, vertices):
         other = ConvexPolyhedron.from_vertices(vertices)

@@ -5,6 +5,7 @@ import math
 import numpy as np
 
 from .._jit import kernel
+from .kinds import SPHERE
 
 
 @kernel
@@ -32,6 +33,10 @@ class Sphere:
     >>> round(float(s.sdf(np.array([1.0, 0.0, 0.0]))), 6)
     0.5
     """
+
+    code = SPHERE
+    polytope = False
+    stored = False  # no shape-table row: a sphere is its radius
 
     def __init__(self, radius):
         radius = float(radius)

@@ -46,8 +46,8 @@ import numpy as np
 
 from .._jit import kernel
 from ..rotation import to_body
+from .kinds import BOX, COMPOUND, POLYGON, POLYHEDRON, SPHERE
 
-SPHERE, PLANE, BOX, POLYGON, POLYHEDRON, CUSTOM, COMPOUND = 0, 1, 2, 3, 4, 5, 6
 #: central-difference step of the SDF gradient, relative to the shape's bounding radius
 GRAD_STEP = 1e-7
 

@@ -24,7 +24,8 @@ from dem.contact.detection.admm import (N_WARM, WARM_MAX_ITER, admm_contact,
 from dem.contact.detection.nodes import (nodes_as3, nodes_contact, nodes_contact_fn,
                                         surface_nodes)
 from dem.shapes.polygon import ConvexPolygon
-from dem.shapes.table import BOX, CUSTOM, PLANE, POLYGON, SPHERE, ShapeTable
+from dem.shapes.kinds import BOX, CUSTOM, PLANE, POLYGON, SPHERE
+from dem.shapes.table import ShapeTable
 
 TOL, MAX_ITER = 1e-8, 300
 

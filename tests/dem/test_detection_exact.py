@@ -38,7 +38,8 @@ from dem.contact.detection.polytope import (
     polytope_contact,
     polytope_plane,
 )
-from dem.shapes.table import BOX, POLYGON, POLYHEDRON, ShapeTable
+from dem.shapes.kinds import BOX, POLYGON, POLYHEDRON
+from dem.shapes.table import ShapeTable
 
 SQ3 = np.sqrt(3.0)
 

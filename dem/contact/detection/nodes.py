@@ -18,7 +18,8 @@ import numpy as np
 
 from ..._jit import kernel
 from ...rotation import to_body, to_world
-from ...shapes.table import BOX, CUSTOM, GRAD_STEP, PLANE, POLYGON, sdf_local
+from ...shapes.kinds import BOX, CUSTOM, PLANE, POLYGON
+from ...shapes.table import GRAD_STEP, sdf_local
 from .admm import _sdf
 
 

@@ -9,7 +9,8 @@ of all the cuts (:func:`_lp_polish`) gives the polish its candidate and lower bo
 import math
 
 from ...._jit import kernel
-from ....shapes.table import GRAD_STEP, PLANE
+from ....shapes.kinds import PLANE
+from ....shapes.table import GRAD_STEP
 
 
 @kernel(inline=True)

@@ -9,7 +9,8 @@ import math
 
 from ...._jit import call_sdf, kernel
 from ....rotation import to_body
-from ....shapes.table import CUSTOM, PLANE, sdf_local
+from ....shapes.kinds import CUSTOM, PLANE
+from ....shapes.table import sdf_local
 
 
 @kernel(inline=True)

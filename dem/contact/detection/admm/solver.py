@@ -6,7 +6,8 @@ import numpy as np
 
 from ...._jit import kernel
 from ....rotation import to_body, to_world
-from ....shapes.table import GRAD_STEP, PLANE
+from ....shapes.kinds import PLANE
+from ....shapes.table import GRAD_STEP
 from ....status import NOCONVERGE, OK
 from .cuts import _cut_range, _keep_cut, _lp_polish
 from .prox import _project, _prox

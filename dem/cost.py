@@ -74,16 +74,21 @@ def run_seconds(n_particles, n_steps, dim, shaped=False):
     return n_particles * n_steps * _rate(dim, shaped)
 
 
-def rve_call_steps(increment, max_step_strain, servo=False):
+def rve_call_steps(increment, max_step_strain, servo=False, relax=True):
     """Time steps of one RVE call: load steps for a strain ``increment`` at
     ``max_step_strain`` a step, plus :data:`RELAX_STEPS` (:data:`RELAX_SERVO_STEPS`
-    with a stress servo).
+    with a stress servo); ``relax=False`` (a micro model's ``relax = false``, YADE
+    FEMxDEM's call) stops at the load steps.
 
     >>> rve_call_steps(1e-4, 1e-5), rve_call_steps(1e-3, 1e-5, servo=True)
     (110, 5100)
+    >>> rve_call_steps(1e-4, 1e-5, relax=False)
+    10
     """
-    relax = RELAX_SERVO_STEPS if servo else RELAX_STEPS
-    return math.ceil(abs(increment) / max_step_strain) + relax
+    load = math.ceil(abs(increment) / max_step_strain)
+    if not relax:
+        return load
+    return load + (RELAX_SERVO_STEPS if servo else RELAX_STEPS)
 
 
 def rve_seconds(n_particles, n_steps, dim, shaped=False):
@@ -102,14 +107,14 @@ def rve_test_seconds(n_particles, dim, n_increments, increment, max_step_strain,
 
 
 def fe2_seconds(n_particles, dim, n_points, n_load_steps, max_step_strain,
-                increment=1e-4, generated=True, shaped=False):
+                increment=1e-4, generated=True, shaped=False, relax=True):
     """Seconds of a multiscale run with DEM micro models on one core:
     :data:`CALLS_PER_STEP` RVE calls per Gauss point and load step, each of a strain
-    ``increment`` (a typical macro strain increment, 1e-4 by default) and
-    :data:`RVE_CALL_S` besides, and one consolidation if the packing is generated
-    (the Gauss points take copies)."""
+    ``increment`` (a typical macro strain increment, 1e-4 by default), relaxed unless
+    ``relax=False``, and :data:`RVE_CALL_S` besides, and one consolidation if the
+    packing is generated (the Gauss points take copies)."""
     calls = n_points * n_load_steps * CALLS_PER_STEP
-    steps = calls * rve_call_steps(increment, max_step_strain)
+    steps = calls * rve_call_steps(increment, max_step_strain, relax=relax)
     gen = n_particles * CONSOLIDATION_S[int(dim)] if generated else 0.0
     return gen + calls * RVE_CALL_S + rve_seconds(n_particles, steps, dim, shaped)
 

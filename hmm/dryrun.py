@@ -17,12 +17,14 @@ cost model :mod:`dem.cost` gives for that work on one core.
 
 from pathlib import Path
 
+import numpy as np
+
 from dem.cost import fe2_seconds, rve_test_seconds, time_line
 from dem.io.plan import check_new_files, check_writable_dir
 from dem.io.schema import SceneError
 from dem.limits import memory_estimate
 
-__all__ = ["plan_batch", "plan_rve", "plan_run"]
+__all__ = ["plan_batch", "plan_rve", "plan_run", "strain_increment"]
 
 
 def plan_run(problem, directory, overwrite=False, restart=False, stop_after=None):
@@ -57,9 +59,11 @@ def plan_run(problem, directory, overwrite=False, restart=False, stop_after=None
     mc = problem["micro"]
     work = ""
     if mc["model"] in ("dem", "adaptive"):
+        increment = strain_increment(problem, macro.mesh.p)
         seconds = fe2_seconds(n_particles, macro.dim, macro.n_gp, last - first + 1,
                               mc["max_step_strain"], generated=mc["packing"] is None,
-                              shaped=mc["shape"] != "sphere")
+                              shaped=mc["shape"] != "sphere", relax=mc["relax"],
+                              **({} if increment is None else {"increment": increment}))
         work = (f"; work at least {calls} RVE calls ({macro.n_gp} Gauss points x "
                 f"{last - first + 1} load steps, times the Newton iterations); "
                 + time_line(seconds, at_most=mc["model"] == "adaptive"))
@@ -69,6 +73,36 @@ def plan_run(problem, directory, overwrite=False, restart=False, stop_after=None
             "replaced" if overwrite and (directory / "fields.h5").exists() else "new")
     return (f"{problem['source']}: valid; {macro.n_elems} elements, {macro.n_gp} Gauss "
             f"points, {steps}; output {directory} ({mode}){memory}{work}")
+
+
+def strain_increment(problem, points):
+    """The macro strain increment of one load step [-] that the cost model gives each
+    RVE call: the largest prescribed displacement (``[[dirichlet]] value``) over the
+    extent of the mesh ``points`` (d, n) [m] along its component, or the largest entry
+    of a prescribed displacement gradient (``[[dirichlet]] gradient``, ``[load]
+    gradient``), over the load steps. None when no displacement is prescribed (a run
+    driven by forces): the cost model's default then applies.
+
+    >>> import numpy as np
+    >>> problem = {"dirichlet": [{"component": "y", "value": -0.02, "gradient": None}],
+    ...            "load": {"steps": 200, "gradient": None}}
+    >>> strain_increment(problem, np.array([[0.0, 0.05, 0.0], [0.0, 0.0, 0.1]]))
+    0.001
+    """
+    from .problem_schema import COMPONENTS
+
+    extent = np.ptp(np.asarray(points, float), axis=1)
+    strains = [abs(float(c["value"])) / extent[COMPONENTS.index(c["component"])]
+               for c in problem.get("dirichlet", ()) if c.get("gradient") is None
+               and c.get("component") in COMPONENTS and c.get("value")
+               and extent[COMPONENTS.index(c["component"])] > 0.0]
+    gradients = [c["gradient"] for c in problem.get("dirichlet", ())
+                 if c.get("gradient") is not None]
+    if problem["load"].get("gradient") is not None:
+        gradients.append(problem["load"]["gradient"])
+    strains += [float(np.max(np.abs(np.asarray(g, float)))) for g in gradients]
+    largest = max(strains, default=0.0)
+    return float(largest) / problem["load"]["steps"] if largest > 0.0 else None
 
 
 def _check_restart(problem, directory, macro, supports, porous, schedule, stop_after):

@@ -35,6 +35,19 @@ def test_multiscale_time_is_calls_times_call_cost():
                                 + cost.rve_seconds(60, steps, 2))
 
 
+def test_an_unrelaxed_call_costs_its_load_steps_only():
+    """relax = false (YADE FEMxDEM's call) takes the load steps and no relaxation: a
+    1e-4 increment at 1e-5 a step is 10 steps, not 110."""
+    assert cost.rve_call_steps(1e-4, 1e-5, relax=False) == 10
+    assert cost.rve_call_steps(1e-4, 1e-5, servo=True, relax=False) == 10
+    relaxed = cost.fe2_seconds(100, 2, 1, 1, 1e-5, generated=False)
+    unrelaxed = cost.fe2_seconds(100, 2, 1, 1, 1e-5, generated=False, relax=False)
+    assert unrelaxed == pytest.approx(cost.CALLS_PER_STEP * cost.RVE_CALL_S
+                                      + cost.rve_seconds(100, cost.CALLS_PER_STEP * 10, 2))
+    assert relaxed - unrelaxed == pytest.approx(
+        cost.rve_seconds(100, cost.CALLS_PER_STEP * cost.RELAX_STEPS, 2))
+
+
 def test_shapes_cost_more_than_spheres():
     assert cost.run_seconds(1000, 100, 3, shaped=True) > cost.run_seconds(1000, 100, 3)
 

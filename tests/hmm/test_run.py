@@ -92,6 +92,24 @@ def test_dry_run_validates_only(tmp_path):
     assert not (tmp_path / "output").exists()
 
 
+def test_the_dry_run_sizes_each_rve_call_by_the_load_step():
+    """The cost model's strain increment per call: the platen's travel over the
+    sample's height per load step, or a prescribed gradient per step; none for a run
+    driven by forces alone."""
+    from hmm.dryrun import strain_increment
+
+    box = np.array([[0.0, 0.04, 0.04, 0.0], [0.0, 0.0, 0.08, 0.08]])
+    assert strain_increment(DEMO, box) == pytest.approx(0.0008 / 0.08 / 8)
+    sheared = {"dirichlet": [{"boundary": "top", "gradient": [[0.0, 0.01], [0.0, 0.0]]}],
+               "load": {"steps": 10}}
+    assert strain_increment(sheared, box) == pytest.approx(1e-3)
+    periodic = {"dirichlet": [], "load": {"steps": 4, "gradient": 0.02}}
+    assert strain_increment(periodic, box) == pytest.approx(5e-3)
+    assert strain_increment({"dirichlet": [{"boundary": "bottom", "component": "y",
+                                            "value": 0.0}], "load": {"steps": 4}},
+                            box) is None
+
+
 def test_multiscale_biaxial_with_dem_rves(tmp_path):
     """The demo problem, shrunk: 2 elements, 8 RVEs of 30 disks, 2 load steps. The
     sample carries more axial than lateral load, the lateral stress stays near the

@@ -19,9 +19,9 @@ import math
 log = logging.getLogger(__name__)
 
 __all__ = ["SECONDS_PER_PARTICLE_STEP", "STEP_S", "RELAX_STEPS", "RELAX_SERVO_STEPS",
-           "CONSOLIDATION_S", "CALLS_PER_STEP", "RVE_CALL_S", "STARTUP_S", "run_seconds",
-           "rve_call_steps", "rve_seconds", "rve_test_seconds", "fe2_seconds", "duration",
-           "time_line"]
+           "CONSOLIDATION_S", "CALLS_PER_STEP", "CALLS_PER_STEP_EXTRAPOLATED", "RVE_CALL_S",
+           "STARTUP_S", "run_seconds", "rve_call_steps", "rve_seconds", "rve_test_seconds",
+           "fe2_seconds", "duration", "time_line"]
 
 #: seconds per particle-step on one core, by (kind, dimension): spheres and disks from
 #: the periodic RVE calls of benchmarks/rve_call.py (400 disks, 1000 spheres) and the
@@ -51,6 +51,11 @@ CONSOLIDATION_S = {2: 5.7e-3, 3: 1.04e-2}
 #: models: its Newton iterations and the retries of its step cuts (16.8 in
 #: examples/biaxial.toml: 73 iterations and 6 cuts in 8 steps, 134 farm trials)
 CALLS_PER_STEP = 10
+
+#: the same with ``predictor = "extrapolated"`` (the last step's displacements, scaled,
+#: as the first guess): 2.03 in examples/triaxial_3d.toml (10,368 calls of 128 points in
+#: 40 steps, 80 Newton iterations; benchmarks/triaxial_3d.py)
+CALLS_PER_STEP_EXTRAPOLATED = 2
 
 #: seconds of an RVE call besides its steps: restoring the state, the contact
 #: tangent, the farm (examples/biaxial.toml: 2.5 ms a call of 60 disks, 1.5 ms of it
@@ -107,13 +112,16 @@ def rve_test_seconds(n_particles, dim, n_increments, increment, max_step_strain,
 
 
 def fe2_seconds(n_particles, dim, n_points, n_load_steps, max_step_strain,
-                increment=1e-4, generated=True, shaped=False, relax=True):
+                increment=1e-4, generated=True, shaped=False, relax=True,
+                predictor="tangent"):
     """Seconds of a multiscale run with DEM micro models on one core:
-    :data:`CALLS_PER_STEP` RVE calls per Gauss point and load step, each of a strain
-    ``increment`` (a typical macro strain increment, 1e-4 by default), relaxed unless
-    ``relax=False``, and :data:`RVE_CALL_S` besides, and one consolidation if the
-    packing is generated (the Gauss points take copies)."""
-    calls = n_points * n_load_steps * CALLS_PER_STEP
+    :data:`CALLS_PER_STEP` RVE calls per Gauss point and load step
+    (:data:`CALLS_PER_STEP_EXTRAPOLATED` with ``predictor="extrapolated"``), each of a
+    strain ``increment`` (a typical macro strain increment, 1e-4 by default), relaxed
+    unless ``relax=False``, and :data:`RVE_CALL_S` besides, and one consolidation if
+    the packing is generated (the Gauss points take copies)."""
+    per_step = CALLS_PER_STEP_EXTRAPOLATED if predictor == "extrapolated" else CALLS_PER_STEP
+    calls = n_points * n_load_steps * per_step
     steps = calls * rve_call_steps(increment, max_step_strain, relax=relax)
     gen = n_particles * CONSOLIDATION_S[int(dim)] if generated else 0.0
     return gen + calls * RVE_CALL_S + rve_seconds(n_particles, steps, dim, shaped)

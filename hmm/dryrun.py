@@ -63,6 +63,7 @@ def plan_run(problem, directory, overwrite=False, restart=False, stop_after=None
         seconds = fe2_seconds(n_particles, macro.dim, macro.n_gp, last - first + 1,
                               mc["max_step_strain"], generated=mc["packing"] is None,
                               shaped=mc["shape"] != "sphere", relax=mc["relax"],
+                              predictor=problem["solver"]["predictor"],
                               **({} if increment is None else {"increment": increment}))
         work = (f"; work at least {calls} RVE calls ({macro.n_gp} Gauss points x "
                 f"{last - first + 1} load steps, times the Newton iterations); "

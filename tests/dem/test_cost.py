@@ -48,6 +48,14 @@ def test_an_unrelaxed_call_costs_its_load_steps_only():
         cost.rve_seconds(100, cost.CALLS_PER_STEP * cost.RELAX_STEPS, 2))
 
 
+def test_the_extrapolated_predictor_makes_fewer_calls():
+    tangent = cost.fe2_seconds(100, 3, 8, 4, 1e-5, generated=False)
+    extrapolated = cost.fe2_seconds(100, 3, 8, 4, 1e-5, generated=False,
+                                    predictor="extrapolated")
+    assert extrapolated == pytest.approx(
+        tangent * cost.CALLS_PER_STEP_EXTRAPOLATED / cost.CALLS_PER_STEP)
+
+
 def test_shapes_cost_more_than_spheres():
     assert cost.run_seconds(1000, 100, 3, shaped=True) > cost.run_seconds(1000, 100, 3)
 

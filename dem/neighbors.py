@@ -29,13 +29,20 @@ def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodi
                      hmat, hinv, triclinic, pairs_out, img_out):
     """Half Verlet list over a cell list; returns the number of pairs found.
 
-    ``lo`` (d,), ``length`` (d,) bound the grid, ``n_cells`` (d,) int64 cells per axis,
-    ``periodic`` (d,) bool. Positions on periodic axes must lie in ``[lo, lo + length)``.
-    ``triclinic``: the grid lives in the fractional coordinates ``hinv (x - lo)`` of
-    a periodic cell with matrix ``hmat`` (every axis periodic, ``length`` unused), and
-    images are the nearest in fractional terms, ``x_j - x_i + hmat img``.
-    Writes up to ``pairs_out.shape[0]`` pairs; a return value larger than that means
-    the buffers overflowed and nothing past the capacity was written.
+    ``sphere_ids`` ascending. ``lo`` (d,), ``length`` (d,) bound the grid, ``n_cells``
+    (d,) int64 cells per axis, ``periodic`` (d,) bool. Positions on periodic axes must
+    lie in ``[lo, lo + length)``. ``triclinic``: the grid lives in the fractional
+    coordinates ``hinv (x - lo)`` of a periodic cell with matrix ``hmat`` (every axis
+    periodic, ``length`` unused), and images are the nearest in fractional terms,
+    ``x_j - x_i + hmat img``. Writes up to ``pairs_out.shape[0]`` pairs; a return value
+    larger than that means the buffers overflowed and nothing past the capacity was
+    written.
+
+    The candidates are read from copies of the positions and radii in cell order, so a
+    cell's members sit side by side; a cell holds its members in ascending order, so
+    the scan of a cell from its end stops at the first ``j <= i``. Without periodic
+    axes, the distance is the plain one, without images (a 2D copy has a zero third
+    coordinate, which adds an exact zero).
     """
     d = pos.shape[1]
     ns = sphere_ids.shape[0]
@@ -43,49 +50,53 @@ def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodi
     coords, start, items = _bin_spheres(pos, sphere_ids, lo, length, n_cells, hinv,
                                         triclinic)
     stencil = _stencil(n_cells, periodic)
+    plain = not triclinic
+    for a in range(d):
+        plain = plain and not periodic[a]
+    cpos = np.zeros((ns, 3))  # members in cell order
+    crad = np.empty(ns)
+    cid = np.empty(ns, np.int64)
+    for q in range(ns):
+        j = sphere_ids[items[q]]
+        cid[q] = j
+        crad[q] = radius[j]
+        for a in range(d):
+            cpos[q, a] = pos[j, a]
     buf = np.empty(64, np.int64)
-    bimg = np.empty((64, d), np.int64)
+    bimg = np.zeros((64, d), np.int64)
     order = np.empty(64, np.int64)
     n_pairs = 0
-    cell = np.empty(d, np.int64)
     shift = np.zeros(d)
+    xi = np.zeros(3)
     for s in range(ns):
         i = sphere_ids[s]
+        for a in range(d):
+            xi[a] = pos[i, a]
         m = 0
         for t in range(stencil.shape[0]):
-            ok = True
-            c = 0
-            for a in range(d):
-                ca = coords[s, a] + stencil[t, a]
-                if ca < 0 or ca >= n_cells[a]:
-                    if periodic[a]:
-                        ca = (ca + n_cells[a]) % n_cells[a]
-                    else:
-                        ok = False
-                cell[a] = ca
-            if not ok:
+            c = _stencil_cell(coords, s, stencil, t, n_cells, periodic)
+            if c < 0:
                 continue
-            for a in range(d):
-                c = c * n_cells[a] + cell[a]
-            for q in range(start[c], start[c + 1]):
-                j = sphere_ids[items[q]]
+            for q in range(start[c + 1] - 1, start[c] - 1, -1):
+                j = cid[q]
                 if j <= i:
-                    continue
-                cut = radius[i] + radius[j] + skin
-                r2 = _image_distance2(pos, i, j, length, periodic, hmat, hinv, triclinic,
-                                      shift)
+                    break
+                cut = radius[i] + crad[q] + skin
+                if plain:
+                    dx = cpos[q, 0] - xi[0]
+                    dy = cpos[q, 1] - xi[1]
+                    dz = cpos[q, 2] - xi[2]
+                    r2 = dx * dx + dy * dy + dz * dz
+                else:
+                    r2 = _image_distance2(cpos, q, xi, d, length, periodic, hmat, hinv,
+                                          triclinic, shift)
                 if r2 < cut * cut:
                     if m == buf.shape[0]:
-                        nb = np.empty(2 * m, np.int64)
-                        nb[:m] = buf
-                        buf = nb
-                        ni = np.empty((2 * m, d), np.int64)
-                        ni[:m] = bimg
-                        bimg = ni
-                        order = np.empty(2 * m, np.int64)
+                        buf, bimg, order = _grow_row(buf, bimg, m)
                     buf[m] = j
-                    for a in range(d):
-                        bimg[m, a] = -np.int64(shift[a])
+                    if not plain:
+                        for a in range(d):
+                            bimg[m, a] = -np.int64(shift[a])
                     m += 1
         _sort_row(buf, order, m)
         for u in range(m):
@@ -96,6 +107,31 @@ def build_cell_pairs(pos, radius, sphere_ids, skin, lo, length, n_cells, periodi
                     img_out[n_pairs, a] = bimg[order[u], a]
             n_pairs += 1
     return n_pairs
+
+
+@kernel(inline=True)
+def _stencil_cell(coords, s, stencil, t, n_cells, periodic):
+    """The flat index of sphere s's neighbour cell ``stencil[t]``, wrapped on periodic
+    axes; -1 past an open edge."""
+    c = 0
+    for a in range(n_cells.shape[0]):
+        ca = coords[s, a] + stencil[t, a]
+        if ca < 0 or ca >= n_cells[a]:
+            if not periodic[a]:
+                return -1
+            ca = (ca + n_cells[a]) % n_cells[a]
+        c = c * n_cells[a] + ca
+    return c
+
+
+@kernel(inline=True)
+def _grow_row(buf, bimg, m):
+    """A row's buffers at twice their size, the first ``m`` slots kept."""
+    nb = np.empty(2 * m, np.int64)
+    nb[:m] = buf[:m]
+    ni = np.zeros((2 * m, bimg.shape[1]), np.int64)
+    ni[:m] = bimg[:m]
+    return nb, ni, np.empty(2 * m, np.int64)
 
 
 @kernel
@@ -171,25 +207,25 @@ def _stencil(n_cells, periodic):
 
 
 @kernel(inline=True)
-def _image_distance2(pos, i, j, length, periodic, hmat, hinv, triclinic, shift):
-    """Squared distance from ``i`` to the nearest image of ``j``; that image's shift
-    (in cell vectors, or lengths on a rectangular grid) is written to ``shift``."""
-    d = pos.shape[1]
+def _image_distance2(cpos, q, xi, d, length, periodic, hmat, hinv, triclinic, shift):
+    """Squared distance from a sphere at ``xi`` to the nearest image of the one at
+    ``cpos[q]``; that image's shift (in cell vectors, or lengths on a rectangular grid)
+    is written to ``shift``."""
     r2 = 0.0
     if triclinic:
         for a in range(d):
             ds = 0.0
             for e in range(d):
-                ds += hinv[a, e] * (pos[j, e] - pos[i, e])
+                ds += hinv[a, e] * (cpos[q, e] - xi[e])
             shift[a] = np.floor(ds + 0.5)
         for a in range(d):
-            dx = pos[j, a] - pos[i, a]
+            dx = cpos[q, a] - xi[a]
             for e in range(d):
                 dx -= hmat[a, e] * shift[e]
             r2 += dx * dx
     else:
         for a in range(d):
-            dx = pos[j, a] - pos[i, a]
+            dx = cpos[q, a] - xi[a]
             if periodic[a]:
                 sh = np.floor(dx / length[a] + 0.5)
                 dx -= sh * length[a]

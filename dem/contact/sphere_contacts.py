@@ -218,31 +218,42 @@ def _near(k, dim, periodic, pos, radius, hmat, pairs, img, touch, hist, skin_inn
     return 0
 
 
+@kernel(inline=True)
+def _body_blocks(n_bodies):
+    """(n,) each body's block: ``(body * N_BLOCKS) // n_bodies``, without a division
+    per body (block ``b`` starts at ``ceil(b n / N_BLOCKS)``)."""
+    blk = np.empty(n_bodies, np.int64)
+    for b in range(N_BLOCKS):
+        lo = (b * n_bodies + N_BLOCKS - 1) // N_BLOCKS
+        hi = ((b + 1) * n_bodies + N_BLOCKS - 1) // N_BLOCKS
+        blk[lo:hi] = b
+    return blk
+
+
 @kernel
 def _compact_inner(pairs, near, n_bodies, inner_out, n_inner_out, blk_start_out,
                    inc_start_out, slot_out):
     """The inner list from the flags ``near`` (m,): internal pairs (both bodies in one
     block) in ascending order, then cross pairs in ascending order; ``n_inner_out``
-    (2,) gets the total and internal counts. Then :func:`inner_index`. ``near`` may be
-    a column of ``slot_out``: it is read before ``slot_out`` is written."""
+    (2,) gets the total and internal counts. Then :func:`inner_index`.
+
+    ``near`` may be ``slot_out[:, 1]``; ``slot_out[:, 0]`` holds the cross pairs
+    meanwhile, and both are read before :func:`inner_index` writes ``slot_out``. The
+    pass has no branch: every pair is written to the next free row of its kind, which
+    a near pair keeps (a row index never passes the pair's own, so stays in bounds)."""
+    blk = _body_blocks(n_bodies)
+    cross = slot_out[:, 0]
     n_int = 0
     n_cross = 0
     for k in range(pairs.shape[0]):
-        if near[k]:
-            if (pairs[k, 0] * N_BLOCKS) // n_bodies == (pairs[k, 1] * N_BLOCKS) // n_bodies:
-                n_int += 1
-            else:
-                n_cross += 1
-    q_int = 0
-    q_cross = n_int
-    for k in range(pairs.shape[0]):
-        if near[k]:
-            if (pairs[k, 0] * N_BLOCKS) // n_bodies == (pairs[k, 1] * N_BLOCKS) // n_bodies:
-                inner_out[q_int] = k
-                q_int += 1
-            else:
-                inner_out[q_cross] = k
-                q_cross += 1
+        f = near[k] != 0
+        same = blk[pairs[k, 0]] == blk[pairs[k, 1]]
+        inner_out[n_int] = k
+        cross[n_cross] = k
+        n_int += f and same
+        n_cross += f and not same
+    for u in range(n_cross):
+        inner_out[n_int + u] = cross[u]
     n_inner_out[0] = n_int + n_cross
     n_inner_out[1] = n_int
     inner_index(pairs, inner_out, n_inner_out, blk_start_out, inc_start_out, slot_out)
@@ -260,8 +271,9 @@ def inner_index(pairs, inner, n_inner, blk_start_out, inc_start_out, slot_out):
     n = inc_start_out.shape[0] - 1
     n_tot, n_int = n_inner[0], n_inner[1]
     blk_start_out[:] = n_int
+    blk = _body_blocks(n)
     for q in range(n_int - 1, -1, -1):  # internal pairs come grouped by block
-        blk_start_out[(pairs[inner[q], 0] * N_BLOCKS) // n] = q
+        blk_start_out[blk[pairs[inner[q], 0]]] = q
     for b in range(N_BLOCKS - 1, -1, -1):  # empty blocks start where the next one does
         blk_start_out[b] = min(blk_start_out[b], blk_start_out[b + 1])
     inc_start_out[:] = 0

@@ -1,4 +1,5 @@
-"""Compiled peridynamic kernels: bond pass, force pass, contact, and the time stepper.
+"""Compiled peridynamic kernels: bond pass, force pass, and the time stepper (the contact
+pass is :mod:`.contact`'s).
 
 Every kernel is dimension-generic (``d`` is read from the arrays) and serves both
 materials (a scalar branch on the model code), so one compilation serves every scene.
@@ -15,6 +16,7 @@ from numba import prange
 
 from .._jit import kernel
 from ..status import NONFINITE, OK, REBUILD
+from .contact import contact_pass
 from .materials import P_ALPHA, P_C, P_CORR, P_KAPPA, P_MODEL, P_SCRIT, PMB_CODE
 
 
@@ -41,17 +43,6 @@ class Bonds(NamedTuple):
     sdev: np.ndarray
     params: np.ndarray
     broken: np.ndarray
-
-
-class Contacts(NamedTuple):
-    """The contacts of a peridynamic scene: candidate pairs ``cpairs`` (m, 2) int64,
-    the ids of the wall bodies ``walls`` and every body's ``normal`` (the walls'), and
-    the penalty stiffness ``kn`` [N/m]."""
-
-    cpairs: np.ndarray
-    walls: np.ndarray
-    normal: np.ndarray
-    kn: float
 
 
 class Loads(NamedTuple):
@@ -195,74 +186,14 @@ def energy_density(pos, start, nbr, length, omega, vol, pw, corr, theta, params,
 
 
 @kernel
-def bonded(start, nbr, broken, i, j):
-    """Whether ``i`` and ``j`` are joined by an intact bond (binary search in i's row)."""
-    lo, hi = start[i], start[i + 1]
-    while lo < hi:
-        mid = (lo + hi) // 2
-        if nbr[mid] < j:
-            lo = mid + 1
-        else:
-            hi = mid
-    return lo < start[i + 1] and nbr[lo] == j and broken[lo] == 0
-
-
-@kernel
-def contact_pass(pos, radius, start, nbr, broken, cpairs, walls, wnormal, kn, force_out):
-    """Elastic contact [N] between bodies not joined by an intact bond, and with walls.
-
-    ``cpairs`` (m, 2) are candidate pairs; a pair touches when its overlap
-    ``r_i + r_j - |x_j - x_i|`` is positive and pushes with ``kn * overlap``. ``walls``
-    are the rows of plane bodies (``pos`` a point on the plane, ``wnormal`` its normal);
-    a free body touches a wall when ``r_i - (x_i - p) . n > 0``. Returns the work-free
-    contact energy ``sum kn overlap^2 / 2`` [J].
-    """
-    n, d = pos.shape
-    energy = 0.0
-    for q in range(cpairs.shape[0]):
-        i, j = cpairs[q, 0], cpairs[q, 1]
-        r2 = 0.0
-        for k in range(d):
-            y = pos[j, k] - pos[i, k]
-            r2 += y * y
-        lim = radius[i] + radius[j]
-        if r2 >= lim * lim or bonded(start, nbr, broken, i, j):
-            continue
-        r = math.sqrt(r2)
-        ov = lim - r
-        f = kn * ov / r
-        energy += 0.5 * kn * ov * ov
-        for k in range(d):
-            fk = f * (pos[j, k] - pos[i, k])
-            force_out[i, k] -= fk
-            force_out[j, k] += fk
-    for a in range(walls.size):
-        w = walls[a]
-        for i in range(n):
-            if radius[i] <= 0.0:
-                continue
-            h = 0.0
-            for k in range(d):
-                h += (pos[i, k] - pos[w, k]) * wnormal[w, k]
-            ov = radius[i] - h
-            if ov > 0.0:
-                energy += 0.5 * kn * ov * ov
-                for k in range(d):
-                    fk = kn * ov * wnormal[w, k]
-                    force_out[i, k] += fk
-                    force_out[w, k] -= fk
-    return energy
-
-
-@kernel
-def forces(pos, radius, mass, fixed, bonds, contacts, loads, scale, force_out):
+def forces(pos, vel, radius, mass, fixed, bonds, contacts, loads, scale, dt, force_out):
     """Every force of the current state into ``force_out`` (zeroed first): the body
     force of ``loads`` times ``scale``, gravity, then the bonds (:class:`Bonds`; their
     dilations are written into ``bonds.theta`` and ``bonds.sdev``) and the contacts
-    (:class:`Contacts`). The bundles are unpacked here, outside the parallel passes."""
+    (:class:`~dem.peridynamics.contact.Contacts`, whose laws advance their history by
+    ``dt``; 0 leaves it). The bundles are unpacked here, outside the parallel passes."""
     (start, nbr, twin, length, omega, vol, qw, pw, corr, theta, sdev, params,
      broken) = bonds
-    cpairs, walls, wnormal, kn = contacts
     bforce, gravity = loads.bforce, loads.gravity
     n, d = pos.shape
     for i in range(n):
@@ -273,7 +204,7 @@ def forces(pos, radius, mass, fixed, bonds, contacts, loads, scale, force_out):
     bond_pass(pos, start, nbr, length, omega, vol, qw, pw, params, broken, theta, sdev)
     force_pass(pos, start, nbr, twin, length, omega, vol, qw, pw, corr, theta, sdev, params,
                broken, force_out)
-    contact_pass(pos, radius, start, nbr, broken, cpairs, walls, wnormal, kn, force_out)
+    contact_pass(pos, vel, mass, radius, start, nbr, broken, contacts, dt, force_out)
 
 
 @kernel
@@ -314,7 +245,7 @@ def step_chunk(n_steps, t0, dt, damping, pos, vel, radius, mass, fixed, bonds, c
                     pos[i, k] += dt * vel[i, k]
         t = t0 + (s + 1) * dt
         scale = np.interp(t, prof_t, prof_v) if prof_t.size else 1.0
-        forces(pos, radius, mass, fixed, bonds, contacts, loads, scale, force)
+        forces(pos, vel, radius, mass, fixed, bonds, contacts, loads, scale, dt, force)
         far = 0.0
         for i in range(n):
             if fixed[i]:

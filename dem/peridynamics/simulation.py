@@ -4,7 +4,8 @@ Material points are rows of a :class:`dem.Bodies` table (disks/spheres of radius
 ``dx / 2``, the mass of their lattice cell); the table may hold DEM spheres and walls
 too. Points of one solid are joined by persistent bonds within the horizon; a pair that
 is not joined by an intact bond (its bond broke, or it never had one) interacts by
-elastic contact, so fragments collide as bodies and a sphere can strike a plate.
+contact through the ordinary contact laws (:mod:`.contact`), so fragments collide as
+bodies, with friction if the law has it, and a sphere can strike a plate.
 """
 
 import math
@@ -16,9 +17,9 @@ from ..shapes import Shape
 from ..progress import progress_bar
 from ..simulation import PARALLEL_MIN_BODIES, SimulationError
 from ..status import NONFINITE, REBUILD
+from .contact import ContactState, contact_model, default_law
 from .kernels import (
     Bonds,
-    Contacts,
     Loads,
     bond_pass,
     energy_density,
@@ -83,10 +84,17 @@ class PDSimulation:
     damping : float
         Cundall local damping in [0, 1), for quasi-static problems.
     gravity : (d,) array_like [m/s^2], optional
+    contact : Law or ContactModel, optional
+        The contact between bodies not joined by an intact bond, and with walls: any
+        law of :mod:`dem.contact.laws` (e.g. ``dem.LinearSpring(kn, kt, mu,
+        restitution=...)`` or ``dem.HertzMindlin``), per material pair through a
+        :class:`dem.ContactModel` (``wall_law`` for the walls), as in
+        :class:`dem.Simulation` (:mod:`dem.peridynamics.contact`). Default: a
+        frictionless, undamped linear spring of stiffness ``E V / (2 dx^2)``, half the
+        stiffness of a lattice cell squeezed across its width, so that contact does not
+        set the time step of a lattice scene.
     contact_kn : float [N/m], optional
-        Stiffness of the elastic contact between bodies not joined by an intact bond;
-        default ``E V / (2 dx^2)``, half the stiffness of a lattice cell squeezed across
-        its width, so that contact does not set the time step of a lattice scene.
+        The default spring's stiffness instead (not with ``contact``).
     skin : float [m], optional
         Verlet skin of the contact list; default 0.3 dx.
     observers : sequence
@@ -97,7 +105,7 @@ class PDSimulation:
     """
 
     def __init__(self, bodies, material, points, horizon, cut=None, dt=None, damping=0.0,
-                 gravity=None, contact_kn=None, skin=None, observers=(),
+                 gravity=None, contact=None, contact_kn=None, skin=None, observers=(),
                  allow_unstable_dt=False, threads=None):
         self.bodies = b = bodies
         self.dim = d = b.dim
@@ -150,13 +158,11 @@ class PDSimulation:
         self.bforce = np.zeros((b.n, d))
         self._prof_t = np.zeros(0)
         self._prof_v = np.zeros(0)
-        if contact_kn is None:
-            contact_kn = 0.5 * material.E * float(np.mean(self.vol[pts])) / self.dx**2
-        if not (contact_kn > 0.0 and math.isfinite(contact_kn)):
-            raise ValueError(f"contact_kn must be positive and finite, got {contact_kn}")
-        self.contact_kn = float(contact_kn)
+        #: the contact laws (a :class:`dem.ContactModel`)
+        self.contact = contact_model(contact, contact_kn, lambda: default_law(
+            float(np.mean(self.vol[pts])), self.dx, material))
+        self._contact = ContactState(self.contact, b)
         self.skin = 0.3 * self.dx if skin is None else float(skin)
-        self.walls = np.flatnonzero(b.kind == Shape.PLANE).astype(np.int64)
         self.observers = list(observers)
         if threads is None:
             threads = numba.config.NUMBA_NUM_THREADS if b.n >= PARALLEL_MIN_BODIES else 1
@@ -211,7 +217,10 @@ class PDSimulation:
         if not free.any():
             return math.inf
         m_min = float(b.mass[free].min())
-        dt_c = math.sqrt(2.0 * m_min / self.contact_kn)
+        r_ref = float(b.radius[free].min())
+        z = self.contact.max_damping_ratio(b, m_min)
+        dt_c = math.sqrt(2.0 * m_min / self._contact.stiffness(r_ref)) * (
+            math.sqrt(1.0 + z * z) - z)
         lam = self._largest_eigenvalue(free, iterations, seed)
         dt_b = 2.0 / math.sqrt(lam) if lam > 0.0 else math.inf
         return min(dt_b, dt_c)
@@ -227,14 +236,14 @@ class PDSimulation:
         out = np.zeros_like(x0)
         bonds = self._bonds(theta=np.zeros(b.n), sdev=np.zeros(b.n), params=params,
                             broken=np.zeros_like(f.broken))
-        contacts = Contacts(np.zeros((0, 2), np.int64), np.zeros(0, np.int64), b.normal, 0.0)
+        contacts = self._contact.empty(b)
         loads = Loads(np.zeros_like(x0), np.zeros(0), np.zeros(0), np.zeros(self.dim))
         lam = 0.0
         for _ in range(iterations):
             v /= np.abs(v).max()
             out[:] = 0.0
-            forces(x0 + eps * scale * v, b.radius, b.mass, np.ones(b.n, np.uint8), bonds,
-                   contacts, loads, 0.0, out)
+            forces(x0 + eps * scale * v, np.zeros_like(x0), b.radius, b.mass,
+                   np.ones(b.n, np.uint8), bonds, contacts, loads, 0.0, 0.0, out)
             w = -scale * out / eps
             lam_old, lam = lam, float((w * v).sum() / (v * v).sum())
             v = w
@@ -259,7 +268,7 @@ class PDSimulation:
             extra.append(np.stack([np.minimum(near, i), np.maximum(near, i)], axis=1))
         if extra:
             pairs = np.unique(np.concatenate([pairs] + extra), axis=0)
-        self.cpairs = np.ascontiguousarray(pairs, np.int64)
+        self._contact.set_pairs(pairs)
         self._pos_ref = b.pos.copy()
 
     def _bonds(self, **change):
@@ -271,7 +280,7 @@ class PDSimulation:
                      f.broken)._replace(**change)
 
     def _contacts(self):
-        return Contacts(self.cpairs, self.walls, self.bodies.normal, float(self.contact_kn))
+        return self._contact.bundle(self.bodies)
 
     def _loads(self):
         return Loads(self.bforce, self._prof_t, self._prof_v, self.gravity)
@@ -280,8 +289,8 @@ class PDSimulation:
         b = self.bodies
         scale = float(np.interp(self.time, self._prof_t, self._prof_v)) if \
             self._prof_t.size else 1.0
-        forces(b.pos, b.radius, b.mass, self._fixed, self._bonds(), self._contacts(),
-               self._loads(), scale, b.force)
+        forces(b.pos, b.vel, b.radius, b.mass, self._fixed, self._bonds(), self._contacts(),
+               self._loads(), scale, 0.0, b.force)
 
     def prime(self):
         """Contact list and forces of the current state (idempotent)."""

@@ -3,7 +3,10 @@
 ``python benchmarks/neighbor_backends.py`` builds the neighbour list of the 16,250-sphere
 packing (skin 0.5 R) with each backend, REPS times (default 7) on one thread, checks
 that both find the same pairs, and writes ``benchmarks/results/neighbor_backends.json``
-with the median build times and their ratio.
+with the median build times and their ratio. Also timed, from the cell list's pairs:
+the compaction of the step loop's inner list (``inner_list_compaction_s``: the pairs
+closer than ``r_i + r_j + skin_inner`` laid out block by block, what every inner-list
+refresh does after flagging them), the same REPS times.
 """
 
 import os
@@ -50,14 +53,43 @@ def main():
                            "pairs": int(nl.pairs.shape[0])}
         print(f"{backend:7s} {1e3 * result[backend]['median_s']:.1f} ms "
               f"({result[backend]['pairs']} pairs)")
+    compaction = inner_compaction(bodies, pairs["cell"], p["SKIN"], reps)
+    print(f"inner-list compaction {1e3 * compaction['median_s']:.2f} ms "
+          f"({compaction['inner']} of {pairs['cell'].shape[0]} pairs)")
     same = bool(np.array_equal(pairs["cell"], pairs["kdtree"]))
     ratio = result["kdtree"]["median_s"] / result["cell"]["median_s"]
     print(f"same pairs: {same}; k-d tree / cell list time: {ratio:.2f}")
     C.write_json(OUT, {"n": int(pos.shape[0]), "skin": p["SKIN"], "reps": reps,
                        "threads": 1, "backends": result, "same_pairs": same,
-                       "ratio_kdtree_over_cell": ratio, "date": C.now(),
+                       "ratio_kdtree_over_cell": ratio,
+                       "inner_list_compaction_s": compaction, "date": C.now(),
                        "machine": C.machine_info()})
     print(f"wrote {C.display_path(OUT)}")
+
+
+def inner_compaction(bodies, pairs, skin, reps):
+    """Median time of the inner list's compaction (:func:`_compact_inner`) for the
+    pairs closer than ``r_i + r_j + INNER_SKIN skin``."""
+    import numpy as np
+
+    from dem.contact.sphere_contacts import N_BLOCKS, _compact_inner
+    from dem.simulation import INNER_SKIN
+
+    i, j = pairs[:, 0], pairs[:, 1]
+    gap = np.linalg.norm(bodies.pos[j] - bodies.pos[i], axis=1) - bodies.radius[i] \
+        - bodies.radius[j]
+    near = (gap < INNER_SKIN * skin).astype(np.int64)
+    m, n = pairs.shape[0], bodies.n
+    out = (np.zeros(m, np.int64), np.zeros(2, np.int64), np.zeros(N_BLOCKS + 1, np.int64),
+           np.zeros(n + 1, np.int64), np.zeros((m, 2), np.int64))
+    _compact_inner(pairs, near, n, *out)  # compile / warm up
+    times = []
+    for _ in range(reps):
+        t = time.perf_counter()
+        _compact_inner(pairs, near, n, *out)
+        times.append(time.perf_counter() - t)
+    return {"median_s": statistics.median(times), "runs_s": times,
+            "inner": int(out[1][0])}
 
 
 if __name__ == "__main__":

@@ -68,6 +68,18 @@ def _forget(hist, k):
         hist[k, c] = 0.0
 
 
+@kernel(inline=True)
+def _exchange(force_out, i, j, fx, fy, fz):
+    """Add the force ``f`` on j, and ``-f`` on i (2D: ``fz`` unused)."""
+    force_out[i, 0] -= fx
+    force_out[i, 1] -= fy
+    force_out[j, 0] += fx
+    force_out[j, 1] += fy
+    if force_out.shape[1] == 3:
+        force_out[i, 2] -= fz
+        force_out[j, 2] += fz
+
+
 @kernel
 def contact_pass(pos, vel, mass, radius, start, nbr, broken, contacts, dt, force_out):
     """Add the contact forces [N] of the current state to ``force_out``.
@@ -104,13 +116,7 @@ def contact_pass(pos, vel, mass, radius, start, nbr, broken, contacts, dt, force
                                radius[i] * radius[j] / lim,
                                mass[i] * mass[j] / (mass[i] + mass[j]), params_pp,
                                mat_id[i], mat_id[j], hist, q, dt)
-        force_out[i, 0] -= fx
-        force_out[i, 1] -= fy
-        force_out[j, 0] += fx
-        force_out[j, 1] += fy
-        if d == 3:
-            force_out[i, 2] -= fz
-            force_out[j, 2] += fz
+        _exchange(force_out, i, j, fx, fy, fz)
     for a in range(walls.size):
         w = walls[a]
         for i in range(n):
@@ -134,13 +140,7 @@ def contact_pass(pos, vel, mass, radius, start, nbr, broken, contacts, dt, force
             fx, fy, fz = apply_law(code_pw, ov, -wnormal[w, 0], -wnormal[w, 1], nz, vx, vy,
                                    vz, radius[i], mass[i], params_pw, mat_id[i], mat_id[w],
                                    whist, row, dt)
-            force_out[i, 0] -= fx  # the law gives the force on the wall
-            force_out[i, 1] -= fy
-            force_out[w, 0] += fx
-            force_out[w, 1] += fy
-            if d == 3:
-                force_out[i, 2] -= fz
-                force_out[w, 2] += fz
+            _exchange(force_out, i, w, fx, fy, fz)  # the law gives the force on the wall
 
 
 # --------------------------------------------------------------------------- Python side

@@ -12,6 +12,7 @@ from pathlib import Path
 from dem.io.schema import REQUIRED, Key, Range, SceneError, Section, read_toml, validate
 from dem.io.scene import SCHEMA as SCENE_SCHEMA
 from dem.io.text import fmt as _fmt
+from dem.shapes.registry import packing_shapes
 from dem.limits import PARTICLES, Limit, LimitError, check_particle_scales
 
 __all__ = ["INCREMENTS", "KINDS", "RVE_SCHEMA", "check_shape", "load_config",
@@ -52,7 +53,7 @@ RVE_SCHEMA = {
             "float", default=0.0, range=_NONNEGATIVE,
             doc="Friction coefficient while consolidating (0: densest packing); "
                 "[contact] mu applies after."),
-        "shape": Key("str", default="sphere", choices=("sphere", "polygon", "box"),
+        "shape": Key("str", default="sphere", choices=tuple(packing_shapes()),
                      doc="Particle shape: sphere (a disk in 2D), polygon (2D: regular, "
                          "circumradius the radius) or box (a square or cube, "
                          "half-diagonal the radius); polygons and boxes at random "
@@ -257,15 +258,8 @@ def check_shape(ctx, p, dim, where="[packing]", rolling=None):
 
 def shape_maker(p, dim=None):
     """The ``shape(r, rng)`` of :func:`dem.rve.generate` for the validated shape keys
-    of a section ``p`` (None for spheres); ``dim`` defaults to ``p["dim"]``."""
-    from dem.shapes import Box, ConvexPolygon
+    of a section ``p`` (None for spheres), from the shape registry
+    (:func:`dem.shapes.registry.packing_maker`); ``dim`` defaults to ``p["dim"]``."""
+    from dem.shapes.registry import packing_maker
 
-    if p["shape"] == "sphere":
-        return None
-    if p["shape"] == "box":
-        d = p["dim"] if dim is None else dim
-        return lambda r, rng: Box([r / math.sqrt(d)] * d)
-    lo = p["sides"]
-    hi = lo if p["sides_max"] is None else p["sides_max"]
-    return lambda r, rng: ConvexPolygon.regular(int(rng.integers(lo, hi + 1)), r)
-
+    return packing_maker(p["shape"], p, p["dim"] if dim is None else dim)

@@ -78,16 +78,13 @@ def dilatancy_angle(axial_strain, volumetric_strain):
 
 
 def grains(bodies):
-    """What the particles are, in words: disks, spheres, polygons, squares, ..."""
-    from dem.shapes import Shape
+    """What the particles are, in words: disks, spheres, polygons, squares, ...
+    (:func:`dem.shapes.registry.grain_name`), or "particles" for a mix."""
+    from dem.shapes.registry import grain_name
 
-    kinds = set(np.unique(bodies.kind).tolist())
-    names = {Shape.SPHERE: ("disks", "spheres"), Shape.BOX: ("squares", "cubes"),
-             Shape.POLYGON: ("polygons", "polygons"),
-             Shape.POLYHEDRON: ("polyhedra", "polyhedra")}
-    if len(kinds) == 1 and kinds <= set(names):
-        return names[kinds.pop()][bodies.dim - 2]
-    return "particles"
+    kinds = np.unique(bodies.kind).tolist()
+    name = grain_name(kinds[0], bodies.dim) if len(kinds) == 1 else None
+    return name or "particles"
 
 
 def summarize(kind, curves, rve, confining, increment):

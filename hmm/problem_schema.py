@@ -5,6 +5,7 @@ and ranges, and the reference generated from it (:func:`schema_markdown`).
 from dem.io.schema import REQUIRED, Key, Range, Section
 from dem.io.schema import schema_markdown as _markdown
 from dem.limits import Limit
+from dem.shapes.registry import packing_shapes
 
 __all__ = ["ANALYTIC", "COMPONENTS", "ELEMENTS_2D", "ELEMENTS_3D", "KINEMATICS",
            "LOAD_STEPS", "MESH_ELEMENTS", "MICRO_MODELS", "QUADRATURE_CHOICE", "SCHEMA",
@@ -165,7 +166,7 @@ SCHEMA = {
         "consolidation_friction": Key("float", default=0.0, range=NONNEGATIVE,
                                       only=("dem", "adaptive"),
                                       doc="Friction while consolidating (lower: denser)."),
-        "shape": Key("str", default="sphere", choices=("sphere", "polygon", "box"),
+        "shape": Key("str", default="sphere", choices=tuple(packing_shapes()),
                      only=("dem", "adaptive"),
                      doc="Particle shape of generated packings, as [packing] shape of "
                          "`hmm rve` (polygon: 2D only)."),

@@ -4,6 +4,8 @@ Signed distance ("eq 26"): with ``q = |x| - h`` componentwise,
 ``sdf(x) = |max(q, 0)| + min(max_a q_a, 0)``; exact inside and outside.
 """
 
+import math
+
 import numpy as np
 
 from .kinds import BOX
@@ -36,6 +38,14 @@ class Box:
     code = BOX
     polytope = True   # vertices and faces: exact detection, a surface in XDMF
     stored = True     # a shape-table row that checkpoints keep
+    grains = ("squares", "cubes")
+    packing = "box"
+
+    @classmethod
+    def packing_maker(cls, keys, dim):
+        """The ``shape(r, rng)`` of :func:`dem.rve.generate`: a square or cube of
+        half-diagonal ``r``."""
+        return lambda r, rng: cls([r / math.sqrt(dim)] * dim)
 
     def __init__(self, half_extents):
         h = np.array(half_extents, dtype=np.float64)

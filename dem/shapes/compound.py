@@ -103,6 +103,8 @@ class Compound:
     code = COMPOUND
     polytope = False  # its parts are; each is its own contact
     stored = True
+    grains = None
+    packing = None
 
     def __init__(self, parts, dim=None):
         parts = list(parts)

@@ -194,6 +194,8 @@ class CustomShape:
     code = CUSTOM
     polytope = False
     stored = False  # its SDF is the user's code, not data
+    grains = None  # named by the user's scene, not here
+    packing = None
 
     def __init__(self, sdf, bounding_radius, dim, params=(), resolution=None):
         if not (isinstance(sdf, CPUDispatcher)

@@ -35,6 +35,8 @@ class Plane:
     code = PLANE
     polytope = False
     stored = False  # no shape-table row: a plane is its normal
+    grains = None  # a wall, not a grain
+    packing = None
 
     def __init__(self, normal):
         n = np.asarray(normal, dtype=np.float64)

@@ -119,6 +119,17 @@ class ConvexPolygon:
     code = POLYGON
     polytope = True
     stored = True
+    grains = ("polygons", "polygons")
+    packing = "polygon"
+
+    @classmethod
+    def packing_maker(cls, keys, dim):
+        """The ``shape(r, rng)`` of :func:`dem.rve.generate`: a regular polygon of
+        circumradius ``r`` with ``keys["sides"]`` corners, or a number drawn uniformly
+        up to ``keys["sides_max"]`` when that is given."""
+        lo = keys["sides"]
+        hi = lo if keys.get("sides_max") is None else keys["sides_max"]
+        return lambda r, rng: cls.regular(int(rng.integers(lo, hi + 1)), r)
 
     def __init__(self, vertices):
         v = np.asarray(vertices, dtype=np.float64)

@@ -87,6 +87,8 @@ class ConvexPolyhedron:
     code = POLYHEDRON
     polytope = True
     stored = True
+    grains = ("polyhedra", "polyhedra")
+    packing = None  # no generated packings of them (yet)
 
     def __init__(self, vertices):
         other = ConvexPolyhedron.from_vertices(vertices)

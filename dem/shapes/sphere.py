@@ -37,6 +37,14 @@ class Sphere:
     code = SPHERE
     polytope = False
     stored = False  # no shape-table row: a sphere is its radius
+    grains = ("disks", "spheres")  # what a packing of them is, in 2D and 3D
+    packing = "sphere"  # its name as a generated packing's shape ([packing] shape)
+
+    @classmethod
+    def packing_maker(cls, keys, dim):
+        """The ``shape(r, rng)`` of :func:`dem.rve.generate` for a packing of these:
+        None, spheres and disks are the generator's own."""
+        return None
 
     def __init__(self, radius):
         radius = float(radius)

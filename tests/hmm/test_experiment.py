@@ -255,7 +255,7 @@ def test_cli_reports_a_failed_relaxation(biaxial, tmp_path, capsys):
     (("law = \"linear\"", "law = \"hooke\""),
      'law must be "linear", "hertz_mindlin" or "hertz_sjkr"'),
     (("[packing]", '[packing]\nshape = "polyhedron"'),
-     "[packing] shape must be \"sphere\", \"polygon\" or \"box\""),
+     "[packing] shape must be \"sphere\", \"box\" or \"polygon\""),
     (("[packing]", '[packing]\nshape = "polygon"\ndim = 3'),
      '[packing] shape = "polygon" needs dim = 2 (in 3D use "box")'),
     (("[packing]", "[packing]\nsides = 5"), "[packing] sides is for shape = \"polygon\""),

@@ -23,12 +23,17 @@ demo: $(STAMP)
 # The suite runs as two pytest processes side by side, split where the compiled loops
 # differ (level-set shapes and their contact solvers, mesh walls and rolling resistance /
 # everything else), so that numba compiles the two halves at once (each cold time loop in
-# a child process of its own, dem._jit.prepare); then the MPI tests.
-SHAPE_TESTS := $(sort $(wildcard tests/dem/test_detection_*.py tests/dem/test_shape*.py \
+# a child process of its own, dem._jit.prepare); then the MPI tests. Both halves share
+# one numba cache: the shapes' half skips the warm-up of the sphere loops
+# (DEM_TEST_WARM=0, tests/conftest.py) and starts with the contact solvers, which need
+# none, while the other half's warm-up compiles them.
+SHAPE_FIRST := tests/dem/test_detection_admm.py tests/dem/test_detection_exact.py
+SHAPE_TESTS := $(SHAPE_FIRST) $(filter-out $(SHAPE_FIRST), \
+	$(sort $(wildcard tests/dem/test_detection_*.py tests/dem/test_shape*.py \
 	tests/dem/test_io_shapes.py tests/dem/test_interpreted.py tests/dem/test_compound.py \
 	tests/dem/test_meshwall*.py tests/dem/test_scene_meshes.py \
 	tests/dem/test_rolling_resistance.py \
-	tests/dem/test_hopper_beverloo.py tests/test_angle_of_repose.py))
+	tests/dem/test_hopper_beverloo.py tests/test_angle_of_repose.py)))
 # the documentation pages run as written (about 4 minutes), shared between the halves
 DOC_TESTS := tests/test_doc_pages.py
 DOC_REST := batch or multiscale
@@ -44,7 +49,7 @@ test: $(STAMP)
 	$(MAKE) test-mpi
 
 test-shapes: $(STAMP)
-	$(PYTEST) --durations=8 --basetemp="$$(mktemp -d)/t" $(SHAPE_TESTS)
+	DEM_TEST_WARM=0 $(PYTEST) --durations=8 --basetemp="$$(mktemp -d)/t" $(SHAPE_TESTS)
 	$(PYTEST) --basetemp="$$(mktemp -d)/t" $(DOC_TESTS) -k "not ($(DOC_REST))"
 	$(PYTEST) --doctest-modules dem hmm
 

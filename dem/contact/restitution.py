@@ -20,9 +20,6 @@ falls at a constant speed, the force with it) and the rebound speed is ``-x'`` t
 import functools
 import math
 
-from scipy.integrate import solve_ivp
-from scipy.optimize import brentq
-
 
 def _force(kind, damping, x, v):
     if kind == "linear":
@@ -36,6 +33,7 @@ def clipped_rebound(kind, damping):
     (``damping`` the ratio zeta) or "hertz" (``damping`` = C = -sqrt(5) beta)."""
     if damping == 0.0:
         return 1.0
+    from scipy.integrate import solve_ivp  # here: scipy.integrate costs 0.8 s to import
 
     def rhs(t, y):
         return [y[1], -_force(kind, damping, y[0], y[1])]
@@ -66,6 +64,8 @@ def clipped_damping(kind, e):
         hi *= 2.0
         if hi > 1e6:
             raise ValueError(f"restitution {e} is below what a clipped dashpot can give")
+    from scipy.optimize import brentq
+
     return brentq(lambda c: clipped_rebound(kind, c) - e, 0.0, hi, xtol=1e-13, rtol=1e-12)
 
 

@@ -245,9 +245,12 @@ def shape_stepper(dim, methods, wall_methods, law_pp, law_pw, periodic=False,
                     pi = wparts[k, 0]
                     pw = wparts[k, 1]
                     if W_ADM and meth == W_ADMM:
+                        # the plane's kind and row as run-time int64s, typed as the pair
+                        # call's: one compile of the solver serves both calls
                         st, ov, nx, ny, nz, cx, cy, cz, nit = _ADMM(
-                            DIM, ekind[pi], eshape[pi], pi, PLANE, 0, pw, 0.0, 0.0, 0.0,
-                            epos, erot, enormal, geo, wwarm, k, tol, max_iter)
+                            DIM, ekind[pi], eshape[pi], pi, np.int64(PLANE), np.int64(0),
+                            pw, 0.0, 0.0, 0.0, epos, erot, enormal, geo, wwarm, k, tol,
+                            max_iter)
                         witers[k] = nit
                         if st != OK:
                             status_out[0] = NOCONVERGE

@@ -29,8 +29,6 @@ in the moments (relative to the largest) in 3D, below 1e-6 and 1e-5 in 2D. It ta
 import math
 
 import numpy as np
-from scipy.optimize import linprog
-from scipy.spatial import HalfspaceIntersection, QhullError
 
 from ..rotation import matrix_to_quat, quat_to_matrix
 from .box import Box
@@ -181,6 +179,9 @@ class Compound:
         normals, offsets = zip(*(self._halfspaces(k) for k in members), strict=True)
         a, b = np.vstack(normals), np.concatenate(offsets)
         size = max(self.parts[k][0].bounding_radius for k in members)
+        from scipy.optimize import linprog  # here: scipy.optimize costs a second to import
+        from scipy.spatial import HalfspaceIntersection, QhullError
+
         lp = linprog(np.r_[np.zeros(d), -1.0],
                      A_ub=np.column_stack([a, np.ones(len(b))]), b_ub=b,
                      bounds=[(None, None)] * d + [(0.0, None)])

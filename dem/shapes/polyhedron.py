@@ -6,11 +6,6 @@ Euclidean distance to the nearest boundary triangle.
 """
 
 import numpy as np
-from scipy.optimize import linprog
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError, cKDTree
-from scipy.spatial.distance import cdist
 
 from .kinds import POLYHEDRON
 from .massprops import (
@@ -119,6 +114,10 @@ class ConvexPolyhedron:
         if v.shape[0] < 4:
             raise ValueError(f"a polyhedron needs at least 4 points, got {v.shape[0]}")
         extent = float(np.ptp(v, axis=0).max())
+        from scipy.sparse import coo_matrix  # scipy here, not at import: it costs a second
+        from scipy.sparse.csgraph import connected_components
+        from scipy.spatial import ConvexHull, QhullError
+
         try:
             hull = ConvexHull(v)
         except QhullError as err:
@@ -196,6 +195,9 @@ class ConvexPolyhedron:
         n, o = n / length[:, None], o / length
         # Chebyshev centre: maximise r subject to n . x + r <= o (|n| = 1)
         scale = max(float(np.abs(o).max()), 1e-300)
+        from scipy.optimize import linprog
+        from scipy.spatial import HalfspaceIntersection, QhullError
+
         lp = linprog(c=[0.0, 0.0, 0.0, -1.0],
                      A_ub=np.column_stack([n, np.ones(len(o))]), b_ub=o / scale,
                      bounds=[(None, None)] * 3 + [(0.0, 1.0e6)])
@@ -275,6 +277,9 @@ class ConvexPolyhedron:
         centre = (a + b + c) / 3.0
         reach = np.sqrt(np.max([np.einsum("td,td->t", p - centre, p - centre)
                                 for p in (a, b, c)], axis=0))
+        from scipy.spatial import cKDTree
+        from scipy.spatial.distance import cdist
+
         upper = cKDTree(self.vertices).query(x)[0] * (1.0 + 1e-12)
         dist = np.empty(len(x))
         step = max(1, _CHUNK // len(self.triangles))

@@ -18,9 +18,9 @@ from scipy.optimize import linprog
 from scipy.spatial import ConvexHull
 
 import dem
-from dem._jit import kernel
 from dem.contact.detection.admm import (N_WARM, WARM_MAX_ITER, admm_contact,
                                        custom_address, make_admm)
+from dem.contact.detection.polytope import polytope_contact
 from dem.contact.detection.nodes import (nodes_as3, nodes_contact, nodes_contact_fn,
                                         surface_nodes)
 from dem.shapes.polygon import ConvexPolygon
@@ -250,10 +250,12 @@ def test_agrees_with_the_polytope_solver_on_corner_contacts():
     equal ADMM's. (Its edge-edge depths and some of its contact points differ from the
     LP reference, and so, in 2D, does its depth of a corner near the other body's
     corner: not compared here.)"""
-    polytope = pytest.importorskip("dem.contact.detection.polytope")
-    if not hasattr(polytope, "polytope_contact"):
-        pytest.skip("no polytope_contact")
-    exact = _exact_kernel(polytope.polytope_contact)
+    def exact(dim, pos, rot, geo):
+        # called from Python, typed as tests/dem/test_detection_exact.py calls it: a
+        # compiled wrapper passing the rows as constants compiled the whole solver again
+        # for those literal values
+        return polytope_contact(dim, 0, 0, 1, 1, 0.0, 0.0, 0.0, pos, rot, geo)
+
     compared = 0
     for _name, dim, kind, row_a, row_b in polytope_cases():
         rng = np.random.default_rng(4)
@@ -275,14 +277,6 @@ def test_agrees_with_the_polytope_solver_on_corner_contacts():
             assert abs(res[1] - ov) <= 1e-7
             assert np.linalg.norm(res[2] - np.array([nx, ny, nz])[:dim]) <= 1e-6
     assert compared >= 30, compared  # 35 here
-
-
-def _exact_kernel(polytope_contact):
-    @kernel
-    def exact(dim, pos, rot, geo):
-        return polytope_contact(dim, 0, 0, 1, 1, 0.0, 0.0, 0.0, pos, rot, geo)
-
-    return exact
 
 
 def test_periodic_shift_is_an_image():

@@ -5,8 +5,10 @@ A sphere (disk) rolling without slip on a plane under a constant rolling moment
 ``M = mu_roll R m g`` decelerates at ``a = M R / (I + m R^2) = mu_roll g / (1 + I /
 (m R^2))``: it stops after ``v0^2 / (2 a)``. A sphere spinning about the normal under a
 constant twisting moment ``mu_twist R m g`` turns ``I w0^2 / (2 mu_twist R m g)`` before
-it stops. The scenes are periodic along the path (far longer than it), so these tests
-compile the same loops as the periodic RVEs with rolling below.
+it stops. The 2D scenes are periodic along the path (far longer than it), so they run
+the loop of the periodic RVEs with rolling below; the 3D ones have the plane alone, the
+loop of the poured piles with rolling (tests/test_angle_of_repose.py): each loop the
+suite compiles costs it half a minute or more.
 """
 
 import math
@@ -22,7 +24,7 @@ INERTIA = {3: 0.4, 2: 0.5}  # I / (m R^2)
 
 
 def _on_plane(dim, law, v=None, w=None):
-    """One sphere resting on a plane at its static overlap (kn = 1e7 m), in a box
+    """One sphere resting on a plane at its static overlap (kn = 1e7 m); in 2D in a box
     periodic along x (1 m long)."""
     up = np.eye(dim)[-1]
     m = RHO * (4.0 / 3.0 * math.pi * R**3 if dim == 3 else math.pi * R**2)
@@ -32,7 +34,8 @@ def _on_plane(dim, law, v=None, w=None):
     if w is not None:
         b.ang_vel[0] = w
     b.add_plane(np.zeros(dim), up)
-    box = dem.Domain(np.full(dim, -0.5), np.full(dim, 0.5), np.eye(dim)[0] > 0)
+    box = (dem.Domain(np.full(dim, -0.5), np.full(dim, 0.5), np.eye(dim)[0] > 0)
+           if dim == 2 else None)
     return dem.Simulation(b, law, gravity=-G * up, box=box), m
 
 

@@ -26,13 +26,15 @@ demo: $(STAMP)
 # a child process of its own, dem._jit.prepare); then the MPI tests. Both halves share
 # one numba cache: the shapes' half skips the warm-up of the sphere loops
 # (DEM_TEST_WARM=0, tests/conftest.py) and starts with the contact solvers, which need
-# none, while the other half's warm-up compiles them.
+# none, while the other half's warm-up compiles them. Tests that run the same loop go to
+# the same half where they can (the Hertz sphere on a plane, mesh or not), so that it is
+# compiled once and not twice at the same moment.
 SHAPE_FIRST := tests/dem/test_detection_admm.py tests/dem/test_detection_exact.py
 SHAPE_TESTS := $(SHAPE_FIRST) $(filter-out $(SHAPE_FIRST), \
 	$(sort $(wildcard tests/dem/test_detection_*.py tests/dem/test_shape*.py \
 	tests/dem/test_io_shapes.py tests/dem/test_interpreted.py tests/dem/test_compound.py \
 	tests/dem/test_meshwall*.py tests/dem/test_scene_meshes.py \
-	tests/dem/test_rolling_resistance.py \
+	tests/dem/test_rolling_resistance.py tests/dem/test_chung_ooi.py \
 	tests/dem/test_hopper_beverloo.py tests/test_angle_of_repose.py)))
 # the documentation pages run as written (about 4 minutes), shared between the halves
 DOC_TESTS := tests/test_doc_pages.py

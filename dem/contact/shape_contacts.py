@@ -9,6 +9,8 @@ a user-defined shape (its call stays in the loop, where it is bound to the user'
 
 import math
 
+import numpy as np
+
 from .._jit import kernel
 from ..shapes.kinds import BOX, CUSTOM, SPHERE
 from ..shapes.registry import kinds_with
@@ -108,8 +110,9 @@ def pair_exact(dim, meth, a, b, sx, sy, sz, pos, rot, radius, shape, geo):
         r = sphere_box(dim, a, radius[a], shape[b], b, sx, sy, sz, pos, rot, geo)
     elif meth == M_SPHERE_POLY:
         r = sphere_polytope(dim, a, radius[a], shape[b], b, sx, sy, sz, pos, rot, geo)
-    else:
-        r = polytope_contact(dim, shape[a], a, shape[b], b, sx, sy, sz, pos, rot, geo)
+    else:  # the body indices as int64, as Python passes them: one compile serves both
+        r = polytope_contact(dim, shape[a], np.int64(a), shape[b], np.int64(b), sx, sy, sz,
+                             pos, rot, geo)
     return r[0], r[1], r[2], r[3], r[4], r[5], r[6]
 
 

@@ -377,9 +377,9 @@ def stepper(dim, law_pp, law_pw, periodic=False, deform=False, rolling=False, me
                             # the law code as a run-time int64, as the Python-side
                             # checks pass it: one compile of the check serves both
                             # (a literal code would compile it again per law)
-                            code = drive_check(np.int64(PP), pos, vel, mass, radius, mat_id, pairs,
-                                               img, hmat, lgrad, fpair, False, pgeom_none,
-                                               params_pp, check)
+                            code = drive_check(np.int64(PP), pos, vel, mass, radius,
+                                               mat_id, pairs, img, hmat, lgrad, fpair,
+                                               False, pgeom_none, params_pp, check)
                             respin = True
                     else:
                         code = relax_check(pos, radius, pairs, img, hmat, fpair, check)
